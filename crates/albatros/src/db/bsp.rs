@@ -1,0 +1,1 @@
+//! BSP tree over the static database (SYSTEM.md 2, Priority).

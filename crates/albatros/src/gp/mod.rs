@@ -1,0 +1,3 @@
+//! Geometric processor (GP, SYSTEM.md 3).
+
+pub mod clip;

@@ -1,0 +1,5 @@
+//! Albatros integration tests: one binary, a module per area (links once).
+
+mod canonical;
+mod clip;
+mod load;
