@@ -1,2 +1,283 @@
-//! x
-fn main() {}
+//! `albatros`: the command-line face of the Albatros image generator. A thin layer of
+//! argument parsing and file I/O over the `albatros` library, which does the work.
+//!
+//! Subcommands: `render` (the main job: a scene to an antialiased PNG), `dump` (the
+//! geometric processor's frame list as JSON), `info` (database and frame counts),
+//! `tables` (the VP's ROM tables as hex files).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use clap::{Parser, Subcommand, ValueEnum};
+
+use albatros::db::{builtin, load, Scene, Screen};
+use albatros::gp::{self, Clipper, Database, GpConfig, GpCounters};
+use albatros::vp::gq::{CellProcessors, MaskLevels};
+use albatros::vp::tables::{GqRom, SppMode, SppTable};
+use albatros::vp::vb::Readout;
+use albatros::vp::{VideoProcessor, VpConfig};
+
+/// The Albatros image generator: a software model of the 1990s «Альбатрос» visual
+/// systems.
+#[derive(Parser)]
+#[command(name = "albatros", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a scene to a PNG (the built-in `default` scene to out.png by default).
+    Render(RenderArgs),
+    /// Write the geometric processor's frame list as JSON.
+    Dump(DumpArgs),
+    /// Print counts: models, faces, BSP, and what the GP does with them.
+    Info(SceneArgs),
+    /// Write the VP's ROM tables (GQ CI/CRI table, SPP tables) as $readmemh hex files.
+    Tables {
+        /// Output directory.
+        #[arg(long, default_value = "tables")]
+        out: PathBuf,
+    },
+}
+
+#[derive(clap::Args)]
+struct SceneArgs {
+    /// A built-in scene (default, rombm, terrain, city, many) or a TOML scene file.
+    #[arg(default_value = "default")]
+    scene: String,
+    /// Screen size WxH (overrides the scene's).
+    #[arg(long, value_parser = parse_size)]
+    size: Option<Screen>,
+    /// Window clipper of the GP.
+    #[arg(long, value_enum, default_value_t = ClipperArg::Automaton)]
+    clipper: ClipperArg,
+}
+
+#[derive(clap::Args)]
+struct RenderArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// Output PNG.
+    #[arg(short, long, default_value = "out.png")]
+    output: PathBuf,
+    /// Mask memory levels in use: I, II, III, IV (P1 fig. 4), none, all, or levels
+    /// like "5-7" or "3,5,7".
+    #[arg(long, default_value = "IV")]
+    masks: String,
+    /// Turn the 2x2 readout filter F2 off.
+    #[arg(long)]
+    no_filter: bool,
+    /// Display gamma (1 gives linear output).
+    #[arg(long, default_value_t = 2.2)]
+    gamma: f32,
+    /// Subpixel rule: area-faithful table (P1), point-sample table, or exact edge lines.
+    #[arg(long, value_enum, default_value_t = SppArg::Area)]
+    spp: SppArg,
+}
+
+#[derive(clap::Args)]
+struct DumpArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// Output file (standard output if absent).
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum ClipperArg {
+    Automaton,
+    AllBorders,
+    Reference,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum SppArg {
+    /// P1's area-faithful table.
+    Area,
+    /// The table of point samples of the quantized line.
+    Sample,
+    /// Point samples of the exact edge lines (no table).
+    Exact,
+}
+
+fn parse_size(s: &str) -> Result<Screen, String> {
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("size '{s}' is not WxH, e.g. 1024x768"))?;
+    let w: u32 = w.trim().parse().map_err(|_| format!("width '{w}' is not a whole number"))?;
+    let h: u32 = h.trim().parse().map_err(|_| format!("height '{h}' is not a whole number"))?;
+    if w == 0 || h == 0 || w > Screen::MAX_SIDE || h > Screen::MAX_SIDE {
+        return Err(format!("size {w}x{h} is out of range: each side must be 1..={}", Screen::MAX_SIDE));
+    }
+    Ok(Screen { width: w, height: h })
+}
+
+fn parse_masks(s: &str, root_level: u32) -> Result<MaskLevels> {
+    Ok(match s.to_ascii_lowercase().as_str() {
+        "i" | "1" if s.eq_ignore_ascii_case("i") => MaskLevels::mode_i(root_level),
+        "ii" => MaskLevels::mode_ii(root_level),
+        "iii" => MaskLevels::mode_iii(root_level),
+        "iv" => MaskLevels::mode_iv(root_level),
+        "none" | "off" => MaskLevels::NONE,
+        "all" => MaskLevels::ALL,
+        other => {
+            let mut m = MaskLevels::NONE;
+            for part in other.split(',') {
+                let (lo, hi) = match part.split_once('-') {
+                    Some((a, b)) => (a.trim().parse::<u32>(), b.trim().parse::<u32>()),
+                    None => (part.trim().parse::<u32>(), part.trim().parse::<u32>()),
+                };
+                match (lo, hi) {
+                    (Ok(lo), Ok(hi)) if lo >= 1 && lo <= hi && hi <= root_level => m.0 |= MaskLevels::range(lo, hi).0,
+                    _ => bail!("--masks '{s}': expected I, II, III, IV, none, all, or levels 1..={root_level} like 5-7 or 3,5,7"),
+                }
+            }
+            m
+        }
+    })
+}
+
+fn load_scene(args: &SceneArgs) -> Result<Scene> {
+    let mut scene = match builtin::scene(&args.scene) {
+        Some(s) => s,
+        None => {
+            let path = Path::new(&args.scene);
+            if !path.exists() {
+                bail!(
+                    "'{}' is neither a built-in scene ({}) nor an existing scene file",
+                    args.scene,
+                    builtin::NAMES.join(", ")
+                );
+            }
+            load::load_scene(path)?
+        }
+    };
+    if let Some(size) = args.size {
+        scene.screen = size;
+    }
+    scene.validate().with_context(|| format!("scene '{}'", args.scene))?;
+    Ok(scene)
+}
+
+fn gp_config(args: &SceneArgs) -> GpConfig {
+    GpConfig {
+        clipper: match args.clipper {
+            ClipperArg::Automaton => Clipper::Automaton,
+            ClipperArg::AllBorders => Clipper::AllBorders,
+            ClipperArg::Reference => Clipper::Reference,
+        },
+    }
+}
+
+fn main() -> Result<()> {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Render(args) => render(args),
+        Command::Dump(args) => dump(args),
+        Command::Info(args) => info(args),
+        Command::Tables { out } => tables(&out),
+    }
+}
+
+fn render(args: RenderArgs) -> Result<()> {
+    let scene = load_scene(&args.scene)?;
+    let screen = scene.screen;
+    if !(args.gamma > 0.0 && args.gamma.is_finite()) {
+        bail!("--gamma {} must be a positive number", args.gamma);
+    }
+    let root_level = CellProcessors::root_level_for(screen.width, screen.height);
+    let masks = parse_masks(&args.masks, root_level)?;
+    let db = Database::new(scene);
+    let (frame, _) = gp::frame_of_scene(&db, &gp_config(&args.scene));
+    let config = VpConfig {
+        masks,
+        spp: match args.spp {
+            SppArg::Area => SppMode::Area,
+            SppArg::Sample => SppMode::Sample,
+            SppArg::Exact => SppMode::Exact,
+        },
+        stats: false,
+        readout: Readout { filter: !args.no_filter, gamma: args.gamma },
+    };
+    let mut vp = VideoProcessor::new(screen.width, screen.height, config);
+    let image = vp.render(&frame);
+    std::fs::write(&args.output, image.encode_png()).with_context(|| format!("writing {}", args.output.display()))?;
+    println!(
+        "{}: {}x{}, {} polygons -> {}",
+        db.scene.name,
+        screen.width,
+        screen.height,
+        frame.polygons.len(),
+        args.output.display()
+    );
+    Ok(())
+}
+
+fn dump(args: DumpArgs) -> Result<()> {
+    let scene = load_scene(&args.scene)?;
+    let db = Database::new(scene);
+    let (frame, _) = gp::frame_of_scene(&db, &gp_config(&args.scene));
+    let json = serde_json::to_string_pretty(&albatros::frame::dump::FrameDump::new(&frame))?;
+    match args.output {
+        Some(path) => std::fs::write(&path, json).with_context(|| format!("writing {}", path.display()))?,
+        None => println!("{json}"),
+    }
+    Ok(())
+}
+
+fn info(args: SceneArgs) -> Result<()> {
+    let scene = load_scene(&args)?;
+    let t0 = std::time::Instant::now();
+    let db = Database::new(scene);
+    let build = t0.elapsed();
+    let mut counters = GpCounters::default();
+    let s = &db.scene;
+    let frame = gp::frame(&db, &s.eye, s.screen, &gp_config(&args), &mut counters);
+    let (nodes, splits) = db.bsp_totals();
+    println!("scene        {}", s.name);
+    println!("screen       {}x{}", s.screen.width, s.screen.height);
+    println!("models       {}", s.models.len());
+    println!("instances    {} ({} moving)", s.instances.len(), db.moving_count());
+    println!("materials    {}", s.materials.len());
+    println!("textures     {}", s.textures.len());
+    println!("light points {}", s.lights.len());
+    println!("faces        {} (over all instances)", s.instance_face_count());
+    println!(
+        "bsp          {nodes} nodes, {splits} splits, {} faces in the static tree, depth {}, built in {:.2?}",
+        db.bsp.stats.faces, db.bsp.stats.depth, build
+    );
+    let c = &counters;
+    println!(
+        "gp: instances rejected {} of {}; by class 1/2/3: {:?}",
+        c.instances_rejected, c.instances, c.instance_class
+    );
+    println!(
+        "gp: faces in {}, back-facing {}, outside {}, by class 1/2/3 {:?}",
+        c.faces_in, c.backfacing, c.outside, c.face_class
+    );
+    println!(
+        "gp: near-clipped {}, window-clipped {}, degenerate {}, light points {}",
+        c.near_clipped, c.window_clipped, c.degenerate, c.lights
+    );
+    println!("frame list   {} polygons", frame.polygons.len());
+    Ok(())
+}
+
+fn tables(out: &Path) -> Result<()> {
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let files = [
+        ("gq_rom.hex", GqRom::get().to_hex()),
+        ("spp_area.hex", SppTable::get(SppMode::Area).to_hex()),
+        ("spp_sample.hex", SppTable::get(SppMode::Sample).to_hex()),
+    ];
+    for (name, text) in files {
+        let path = out.join(name);
+        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+        println!("{}", path.display());
+    }
+    let readme = out.join("README.txt");
+    std::fs::write(&readme, albatros::vp::tables::TABLES_README)?;
+    println!("{}", readme.display());
+    Ok(())
+}

@@ -1,1 +1,228 @@
-//! The frame list.
+//! The frame list: what the geometric processor (GP) writes into the frame memory (FB)
+//! and the video processor (VP) reads (P1 fig. 1, the double-buffered FB).
+//!
+//! A frame list is a sequence of set-up, screen-space, convex polygons in exact
+//! front-to-back priority order. Vertices and edges of all polygons live in two flat
+//! arrays, each polygon holding ranges into them, so that building a frame allocates
+//! per frame, never per polygon.
+//!
+//! **Invariant**: polygon `i` never lies behind polygon `j > i` where they overlap on
+//! the screen (for non-intersecting geometry); every polygon is convex with at least
+//! three vertices on the 1/256-pixel grid ([`crate::vp::edge::SUBPIXEL_SNAP`]) and
+//! non-zero area; its edges are in the VP's edge code.
+
+use std::ops::Range;
+
+use serde::Serialize;
+
+use crate::db::Rgb;
+use crate::vp::edge::EdgeCode;
+
+/// A fractional-linear function's numerator triple over screen pixels (P2): the value
+/// `q` at pixel centre `(x, y)` is `(a x + b y + c) / (1/Z)(x, y)`; for the `1/Z`
+/// function itself the triple is `1/Z` directly.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct FracLin {
+    /// Coefficient of x.
+    pub a: f32,
+    /// Coefficient of y.
+    pub b: f32,
+    /// Constant.
+    pub c: f32,
+}
+
+impl FracLin {
+    /// `a x + b y + c`.
+    #[inline]
+    pub fn eval(&self, x: f32, y: f32) -> f32 {
+        self.a * x + self.b * y + self.c
+    }
+}
+
+/// One vertex of a screen polygon: position in pixels (origin top-left, y down) on
+/// the snapping grid, and `1/w` (`w` = eye-space depth Z).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ScreenVertex {
+    /// x in pixels.
+    pub x: f32,
+    /// y in pixels.
+    pub y: f32,
+    /// 1 / eye-space depth.
+    pub inv_w: f32,
+}
+
+/// What kind of primitive a polygon came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PrimitiveKind {
+    /// A face of a model.
+    Face,
+    /// A light point turned into a polygon by the preprocessor.
+    Light,
+}
+
+/// Texture parameters of a polygon, set up by the GP (P2).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct PolyTexture {
+    /// Texture map index.
+    pub map: u32,
+    /// `u` as a fractional-linear function, origin shifted near the eye.
+    pub u: FracLin,
+    /// `v` likewise.
+    pub v: FracLin,
+    /// `PAR = (1/L) (1/|Dn|)` for the level of detail.
+    pub par: f32,
+    /// `C1`, the colour where the map's `T = 1`.
+    pub color1: Rgb,
+    /// `C2`, the colour where `T = 0`.
+    pub color2: Rgb,
+}
+
+/// One set-up polygon of the frame list.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FramePolygon {
+    /// Its vertices in [`FrameList::vertices`].
+    pub vertices: Range<u32>,
+    /// Its edges in [`FrameList::edges`].
+    pub edges: Range<u32>,
+    /// Face or light.
+    pub kind: PrimitiveKind,
+    /// Material index (for a light: `u32::MAX`).
+    pub material: u32,
+    /// Instance and face it came from (for a light: light index and `u32::MAX`).
+    pub source: (u32, u32),
+    /// Base colour (untextured faces and lights).
+    pub color: Rgb,
+    /// `1/Z` as a linear function of pixel coordinates.
+    pub inv_z: FracLin,
+    /// Brightness, fractional-linear.
+    pub intensity: FracLin,
+    /// Texture set-up, if textured.
+    pub texture: Option<PolyTexture>,
+    /// 6-bit transparency code.
+    pub transparency: u8,
+}
+
+/// The frame list of one frame (one half of the FB).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct FrameList {
+    /// Screen width in pixels.
+    pub width: u32,
+    /// Screen height in pixels.
+    pub height: u32,
+    /// Background (sky) colour, the last fragment of every pixel.
+    pub background: Rgb,
+    /// Fog colour.
+    pub fog_color: Rgb,
+    /// Visibility range `Z0` (infinite: no fog).
+    pub visibility: f32,
+    /// Pixel size at unit depth (`delta` of P2's footprint formula), `1/f`.
+    pub pixel_angle: f32,
+    /// Polygons in front-to-back order.
+    pub polygons: Vec<FramePolygon>,
+    /// Vertices of all polygons.
+    pub vertices: Vec<ScreenVertex>,
+    /// Edges of all polygons in the VP's code.
+    #[serde(skip)]
+    pub edges: Vec<EdgeCode>,
+}
+
+impl FrameList {
+    /// The vertices of polygon `p`.
+    pub fn vertices_of(&self, p: &FramePolygon) -> &[ScreenVertex] {
+        &self.vertices[p.vertices.start as usize..p.vertices.end as usize]
+    }
+
+    /// The edges of polygon `p`.
+    pub fn edges_of(&self, p: &FramePolygon) -> &[EdgeCode] {
+        &self.edges[p.edges.start as usize..p.edges.end as usize]
+    }
+
+    /// Empties the list for reuse, keeping its allocations.
+    pub fn clear(&mut self) {
+        self.polygons.clear();
+        self.vertices.clear();
+        self.edges.clear();
+    }
+}
+
+/// The frame list as `albatros dump` writes it.
+pub mod dump {
+    use serde::Serialize;
+
+    use super::{FracLin, FrameList, PolyTexture, PrimitiveKind};
+    use crate::db::Rgb;
+
+    /// Version of the dump's JSON layout.
+    pub const DUMP_VERSION: u32 = 1;
+
+    /// One polygon of the dump.
+    #[derive(Serialize)]
+    pub struct PolygonDump {
+        /// Priority rank: 0 is the nearest.
+        pub priority: usize,
+        /// Face or light.
+        pub kind: PrimitiveKind,
+        /// Material index (`null` for a light).
+        pub material: Option<u32>,
+        /// (instance, face) or (light, null).
+        pub source: (u32, Option<u32>),
+        /// Screen vertices `[x, y, 1/w]`.
+        pub vertices: Vec<[f32; 3]>,
+        /// Base colour.
+        pub color: Rgb,
+        /// `1/Z = a x + b y + c`.
+        pub inv_z: FracLin,
+        /// Intensity numerator: `I = (a x + b y + c) / (1/Z)`.
+        pub intensity: FracLin,
+        /// Texture set-up, if textured.
+        pub texture: Option<PolyTexture>,
+        /// 6-bit transparency code.
+        pub transparency: u8,
+    }
+
+    /// The whole dump.
+    #[derive(Serialize)]
+    pub struct FrameDump {
+        /// Layout version.
+        pub version: u32,
+        /// Screen width.
+        pub width: u32,
+        /// Screen height.
+        pub height: u32,
+        /// Background colour.
+        pub background: Rgb,
+        /// Polygons in priority order, nearest first.
+        pub polygons: Vec<PolygonDump>,
+    }
+
+    impl FrameDump {
+        /// The dump of a frame list.
+        pub fn new(frame: &FrameList) -> Self {
+            let polygons = frame
+                .polygons
+                .iter()
+                .enumerate()
+                .map(|(priority, p)| PolygonDump {
+                    priority,
+                    kind: p.kind,
+                    material: (p.kind == PrimitiveKind::Face).then_some(p.material),
+                    source: (p.source.0, (p.kind == PrimitiveKind::Face).then_some(p.source.1)),
+                    vertices: frame.vertices_of(p).iter().map(|v| [v.x, v.y, v.inv_w]).collect(),
+                    color: p.color,
+                    inv_z: p.inv_z,
+                    intensity: p.intensity,
+                    texture: p.texture,
+                    transparency: p.transparency,
+                })
+                .collect();
+            Self {
+                version: DUMP_VERSION,
+                width: frame.width,
+                height: frame.height,
+                background: frame.background,
+                polygons,
+            }
+        }
+    }
+}

@@ -13,3 +13,5 @@
 pub mod db;
 pub mod frame;
 pub mod gp;
+pub mod model;
+pub mod vp;

@@ -71,10 +71,12 @@ impl Model {
             normal: normal_matrix.transform_vector3(v.normal).normalize_or_zero(),
             intensity: v.intensity,
         }));
-        self.faces.extend(other.faces.iter().map(|f| Face {
-            vertices: f.vertices.iter().map(|i| i + base).collect(),
-            material: f.material,
-        }));
+        self.faces.extend(
+            other
+                .faces
+                .iter()
+                .map(|f| Face { vertices: f.vertices.iter().map(|i| i + base).collect(), material: f.material }),
+        );
     }
 
     /// Sets every vertex normal that is zero to the area-weighted mean of the normals
@@ -117,9 +119,8 @@ pub fn polygon_normal(points: impl Iterator<Item = Vec3> + Clone) -> Vec3 {
 
 /// The bounding sphere of a set of points, centred at their bounding box's centre.
 pub fn bounding_sphere(points: impl Iterator<Item = Vec3> + Clone) -> (Vec3, f32) {
-    let (lo, hi) = points
-        .clone()
-        .fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(lo, hi), p| (lo.min(p), hi.max(p)));
+    let (lo, hi) =
+        points.clone().fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(lo, hi), p| (lo.min(p), hi.max(p)));
     if lo.x > hi.x {
         return (Vec3::ZERO, 0.0);
     }
@@ -494,7 +495,11 @@ impl Scene {
                         len: self.textures.len(),
                     });
                 }
-                finite(&what, "texture", [t.period, t.u_axis.x, t.u_axis.y, t.u_axis.z, t.v_axis.x, t.v_axis.y, t.v_axis.z])?;
+                finite(
+                    &what,
+                    "texture",
+                    [t.period, t.u_axis.x, t.u_axis.y, t.u_axis.z, t.v_axis.x, t.v_axis.y, t.v_axis.z],
+                )?;
                 finite(&what, "texture.origin", t.origin.to_array())?;
                 if t.period <= 0.0 {
                     return Err(SceneError::OutOfRange {
@@ -530,12 +535,7 @@ impl Scene {
             finite(&what, "color", l.color.to_array())?;
             finite(&what, "intensity/size", [l.intensity, l.size])?;
             if l.size <= 0.0 {
-                return Err(SceneError::OutOfRange {
-                    what,
-                    field: "size",
-                    value: l.size.to_string(),
-                    range: "> 0",
-                });
+                return Err(SceneError::OutOfRange { what, field: "size", value: l.size.to_string(), range: "> 0" });
             }
         }
         Ok(())

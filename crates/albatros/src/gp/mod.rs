@@ -1,3 +1,567 @@
-//! Geometric processor (GP, SYSTEM.md 3).
+//! Geometric processor (GP, SYSTEM.md 3): from the scene database and the eye to the
+//! frame list.
+//!
+//! Per frame, for every face in the BSP's front-to-back order (moving models slotted
+//! in as wholes): the model-to-eye transform (one 4x4 matrix per model, P5),
+//! coarse rejection of whole models by their bounding sphere and of faces by their
+//! outcodes against the view volume in homogeneous coordinates (P5 b), back-face
+//! culling (P5 d), the object classes of P4 (1: inside the window, passed on
+//! untouched; 2: crosses the window border, clipped by the window; 3: crosses the
+//! screen (near) plane, clipped by that plane first), perspective projection,
+//! clipping by the window in the P4 clipping block ([`clip`]), snapping to the
+//! VP's 1/256-pixel grid and set-up ([`setup`]).
+//!
+//! Eye coordinates: X right, Y down, Z forward (depth); screen `x = W/2 + f X/Z`,
+//! `y = H/2 + f Y/Z` with `f = (W/2) / tan(fov/2)`. The GP computes in `f64` (the
+//! papers' GP used 32-bit floats; a modern CPU pays nothing for the extra bits) and
+//! hands the VP `f32` coefficients.
+//!
+//! **Invariant**: the frame list is in exact priority order for non-intersecting
+//! geometry, and every polygon in it is convex, inside the window, non-degenerate.
 
 pub mod clip;
+pub mod lights;
+pub mod setup;
+
+use glam::{DMat3, DMat4, DVec2, DVec3};
+use serde::Serialize;
+
+use crate::db::bsp::{Bsp, BspFace, BspVertex, Plane, Slot, Visit};
+use crate::db::{Eye, Scene, Screen};
+use crate::frame::{FrameList, PrimitiveKind};
+use clip::Window;
+use setup::{EyeVertex, Setup, Source};
+
+/// The near (screen) plane's depth in metres.
+pub const NEAR: f64 = 0.1;
+
+/// Which window clipper the GP uses (all three give the same polygons).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub enum Clipper {
+    /// P4 table 1: four half-plane automata in a pipeline.
+    #[default]
+    Automaton,
+    /// P4 fig. 3: all borders at once.
+    AllBorders,
+    /// Plain Sutherland-Hodgman.
+    Reference,
+}
+
+/// Counters of the GP for one frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct GpCounters {
+    /// Instances (models) considered.
+    pub instances: u64,
+    /// Instances rejected whole by their bounding sphere.
+    pub instances_rejected: u64,
+    /// Instances per P4 class 1, 2, 3 (by bounding sphere).
+    pub instance_class: [u64; 3],
+    /// Faces read from the database (after the BSP's splits).
+    pub faces_in: u64,
+    /// Faces culled as back-facing.
+    pub backfacing: u64,
+    /// Faces rejected as outside the view volume.
+    pub outside: u64,
+    /// Faces per P4 class 1, 2, 3.
+    pub face_class: [u64; 3],
+    /// Faces clipped by the near plane.
+    pub near_clipped: u64,
+    /// Faces clipped by the window.
+    pub window_clipped: u64,
+    /// Faces that vanished after clipping or snapping (zero area).
+    pub degenerate: u64,
+    /// Light points turned into polygons.
+    pub lights: u64,
+    /// Polygons in the frame list.
+    pub polygons_out: u64,
+}
+
+/// A moving model: its own BSP in model coordinates.
+#[derive(Clone, Debug)]
+struct Moving {
+    instance: u32,
+    bsp: Bsp,
+}
+
+/// Per-instance data fixed at load.
+#[derive(Clone, Debug)]
+struct InstanceInfo {
+    model_to_world: DMat4,
+    world_to_model: DMat4,
+    /// Bounding sphere in world coordinates.
+    center: DVec3,
+    radius: f64,
+}
+
+/// The database as the GP holds it: the scene, the static BSP (world coordinates),
+/// the moving models with their own BSPs.
+#[derive(Clone, Debug)]
+pub struct Database {
+    /// The scene.
+    pub scene: Scene,
+    /// The static BSP over all non-moving instances, world coordinates.
+    pub bsp: Bsp,
+    moving: Vec<Moving>,
+    instances: Vec<InstanceInfo>,
+}
+
+impl Database {
+    /// Builds the database (BSP trees) from a validated scene.
+    pub fn new(scene: Scene) -> Self {
+        let mut instances = Vec::with_capacity(scene.instances.len());
+        let mut static_faces = Vec::new();
+        let mut moving = Vec::new();
+        for (ii, inst) in scene.instances.iter().enumerate() {
+            let m = inst.transform.as_dmat4();
+            let model = &scene.models[inst.model as usize];
+            let (c, r) = model.bounding_sphere();
+            let scale =
+                m.x_axis.truncate().length().max(m.y_axis.truncate().length()).max(m.z_axis.truncate().length());
+            instances.push(InstanceInfo {
+                model_to_world: m,
+                world_to_model: m.inverse(),
+                center: m.transform_point3(c.as_dvec3()),
+                radius: f64::from(r) * scale,
+            });
+            if inst.moving {
+                let faces = bsp_faces(&scene, ii as u32, DMat4::IDENTITY);
+                moving.push(Moving { instance: ii as u32, bsp: Bsp::build(faces) });
+            } else {
+                static_faces.extend(bsp_faces(&scene, ii as u32, m));
+            }
+        }
+        Self { bsp: Bsp::build(static_faces), moving, instances, scene }
+    }
+
+    /// Number of moving models.
+    pub fn moving_count(&self) -> usize {
+        self.moving.len()
+    }
+
+    /// Total BSP nodes and splits, static and moving trees together.
+    pub fn bsp_totals(&self) -> (usize, usize) {
+        let nodes = self.bsp.stats.nodes + self.moving.iter().map(|m| m.bsp.stats.nodes).sum::<usize>();
+        let splits = self.bsp.stats.splits + self.moving.iter().map(|m| m.bsp.stats.splits).sum::<usize>();
+        (nodes, splits)
+    }
+}
+
+/// The faces of instance `ii` transformed by `m`, as BSP faces.
+fn bsp_faces(scene: &Scene, ii: u32, m: DMat4) -> Vec<BspFace> {
+    let inst = &scene.instances[ii as usize];
+    let model = &scene.models[inst.model as usize];
+    let normal_m = DMat3::from_mat4(m).inverse().transpose();
+    model
+        .faces
+        .iter()
+        .enumerate()
+        .filter_map(|(fi, f)| {
+            let vertices: Vec<BspVertex> = f
+                .vertices
+                .iter()
+                .map(|&i| {
+                    let v = &model.vertices[i as usize];
+                    BspVertex {
+                        position: m.transform_point3(v.position.as_dvec3()),
+                        normal: (normal_m * v.normal.as_dvec3()).normalize_or_zero().as_vec3(),
+                        intensity: v.intensity,
+                    }
+                })
+                .collect();
+            let n = newell(&vertices);
+            let len = n.length();
+            (len > 0.0).then(|| {
+                let normal = n / len;
+                BspFace {
+                    plane: Plane { normal, d: normal.dot(vertices[0].position) },
+                    vertices,
+                    material: f.material,
+                    instance: ii,
+                    face: fi as u32,
+                }
+            })
+        })
+        .collect()
+}
+
+fn newell(vs: &[BspVertex]) -> DVec3 {
+    let p0 = vs[0].position;
+    let mut n = DVec3::ZERO;
+    for i in 1..vs.len() - 1 {
+        n += (vs[i].position - p0).cross(vs[i + 1].position - p0);
+    }
+    n
+}
+
+/// The eye's view: world-to-eye matrix and projection.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct View {
+    /// World to eye coordinates.
+    pub world_to_eye: DMat4,
+    /// Eye position (world).
+    pub position: DVec3,
+    /// Focal length in pixels.
+    pub focal: f64,
+    /// Screen centre.
+    pub center: DVec2,
+    /// Screen size.
+    pub screen: Screen,
+}
+
+impl View {
+    /// The view of `eye` on `screen`.
+    pub fn new(eye: &Eye, screen: Screen) -> Self {
+        let (h, p, r) =
+            (f64::from(eye.heading).to_radians(), f64::from(eye.pitch).to_radians(), f64::from(eye.roll).to_radians());
+        // Orientation: roll about forward, then pitch about right, then heading
+        // (clockwise seen from above) about world Z. At rest: right = +X,
+        // forward = +Y, up = +Z.
+        let o = DMat3::from_rotation_z(-h) * DMat3::from_rotation_x(p) * DMat3::from_rotation_y(r);
+        let right = o * DVec3::X;
+        let forward = o * DVec3::Y;
+        let up = o * DVec3::Z;
+        let down = -up;
+        let pos = eye.position.as_dvec3();
+        let rot = DMat3::from_cols(right, down, forward).transpose();
+        let world_to_eye = DMat4::from_mat3(rot) * DMat4::from_translation(-pos);
+        let focal = f64::from(screen.width) * 0.5 / (f64::from(eye.fov).to_radians() * 0.5).tan();
+        Self {
+            world_to_eye,
+            position: pos,
+            focal,
+            center: DVec2::new(f64::from(screen.width) * 0.5, f64::from(screen.height) * 0.5),
+            screen,
+        }
+    }
+
+    /// Screen position of an eye-space point in front of the eye.
+    #[inline]
+    pub fn project(&self, p: DVec3) -> DVec2 {
+        DVec2::new(self.center.x + self.focal * p.x / p.z, self.center.y + self.focal * p.y / p.z)
+    }
+
+    /// Outcode of an eye-space point against the view volume in homogeneous
+    /// coordinates (`hx = f X + cx Z`, `hy = f Y + cy Z`, `w = Z`): bit 0 left
+    /// (`hx < 0`), 1 right (`hx > W w`), 2 top, 3 bottom, 4 near (`Z < NEAR`).
+    #[inline]
+    pub fn outcode(&self, p: DVec3) -> u8 {
+        let hx = self.focal * p.x + self.center.x * p.z;
+        let hy = self.focal * p.y + self.center.y * p.z;
+        let (w, wx, wy) = (p.z, f64::from(self.screen.width) * p.z, f64::from(self.screen.height) * p.z);
+        (hx < 0.0) as u8
+            | ((hx > wx) as u8) << 1
+            | ((hy < 0.0) as u8) << 2
+            | ((hy > wy) as u8) << 3
+            | ((w < NEAR) as u8) << 4
+    }
+
+    /// The P4 class and rejection of a sphere (eye-space centre, radius): `None` when
+    /// wholly outside the view volume, else `Some(1 | 2 | 3)`.
+    pub fn sphere_class(&self, c: DVec3, r: f64) -> Option<u8> {
+        if c.z < NEAR - r {
+            return None;
+        }
+        let (w, h) = (f64::from(self.screen.width), f64::from(self.screen.height));
+        // Side planes through the eye: normals of the four window borders.
+        let planes = [
+            DVec3::new(self.focal, 0.0, self.center.x),
+            DVec3::new(-self.focal, 0.0, w - self.center.x),
+            DVec3::new(0.0, self.focal, self.center.y),
+            DVec3::new(0.0, -self.focal, h - self.center.y),
+        ];
+        let mut crosses = false;
+        for n in planes {
+            let d = n.dot(c) / n.length();
+            if d < -r {
+                return None;
+            }
+            if d < r {
+                crosses = true;
+            }
+        }
+        Some(if c.z - r < NEAR {
+            3
+        } else if crosses {
+            2
+        } else {
+            1
+        })
+    }
+}
+
+/// Options of the GP.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct GpConfig {
+    /// The window clipper.
+    pub clipper: Clipper,
+}
+
+/// Scratch buffers reused from face to face (no allocation per face).
+#[derive(Default)]
+struct Scratch {
+    eye: Vec<EyeVertex>,
+    clipped_eye: Vec<EyeVertex>,
+    screen: Vec<DVec2>,
+    window: Vec<DVec2>,
+}
+
+/// What is slotted into the static tree's order besides its own faces.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Guest {
+    /// A moving model (index into `Database::moving`).
+    Moving(usize),
+    /// A light point (index into `Scene::lights`).
+    Light(usize),
+}
+
+/// The GP at work on one frame.
+struct FrameBuilder<'a> {
+    db: &'a Database,
+    view: View,
+    config: GpConfig,
+    setup: Setup,
+    out: FrameList,
+    counters: GpCounters,
+    scratch: Scratch,
+    /// Per instance: P4 class by bounding sphere (`None`: rejected).
+    class: Vec<Option<u8>>,
+    /// Per instance: model-to-eye matrix.
+    model_to_eye: Vec<DMat4>,
+    /// Guests sorted by (node, slot, distance from the eye).
+    guests: Vec<(u32, u8, f64, Guest)>,
+    sun_world: DVec3,
+}
+
+/// Builds the frame list of one frame: the GP's whole job.
+pub fn frame(db: &Database, eye: &Eye, screen: Screen, config: &GpConfig, counters: &mut GpCounters) -> FrameList {
+    let view = View::new(eye, screen);
+    let setup = Setup::new(&db.scene, &view);
+    let out = setup.frame_list();
+    let mut b = FrameBuilder {
+        db,
+        view,
+        config: *config,
+        setup,
+        out,
+        counters: GpCounters::default(),
+        scratch: Scratch::default(),
+        class: Vec::with_capacity(db.instances.len()),
+        model_to_eye: Vec::with_capacity(db.instances.len()),
+        guests: Vec::new(),
+        sun_world: db.scene.env.sun.as_dvec3().normalize_or_zero(),
+    };
+    b.instances();
+    b.guests();
+    let sun = b.sun_world;
+    db.bsp.traverse(view.position, |step| match step {
+        Visit::Face(f) => b.face(&db.bsp.faces[f as usize], view.world_to_eye, view.position, sun),
+        Visit::Guests(n, s) => b.emit_guests(n, s),
+    });
+    b.counters.polygons_out = b.out.polygons.len() as u64;
+    *counters = b.counters;
+    b.out
+}
+
+impl FrameBuilder<'_> {
+    /// Instance transforms, rejection and P4 classes by bounding sphere.
+    fn instances(&mut self) {
+        for info in &self.db.instances {
+            self.counters.instances += 1;
+            let c_eye = self.view.world_to_eye.transform_point3(info.center);
+            let cl = self.view.sphere_class(c_eye, info.radius);
+            match cl {
+                None => self.counters.instances_rejected += 1,
+                Some(k) => self.counters.instance_class[k as usize - 1] += 1,
+            }
+            self.class.push(cl);
+            self.model_to_eye.push(self.view.world_to_eye * info.model_to_world);
+        }
+    }
+
+    /// Attaches moving models and light points to the static tree.
+    fn guests(&mut self) {
+        let db = self.db;
+        for (mi, m) in db.moving.iter().enumerate() {
+            let info = &db.instances[m.instance as usize];
+            if self.class[m.instance as usize].is_none() {
+                continue;
+            }
+            let (node, slot) = db.bsp.attach(info.center, info.radius);
+            self.guests.push((node, slot as u8, info.center.distance(self.view.position), Guest::Moving(mi)));
+        }
+        for (li, l) in db.scene.lights.iter().enumerate() {
+            let p = l.position.as_dvec3();
+            let (node, slot) = db.bsp.attach(p, f64::from(l.size) * 0.5);
+            self.guests.push((node, slot as u8, p.distance(self.view.position), Guest::Light(li)));
+        }
+        self.guests.sort_by(|a, b| (a.0, a.1).cmp(&(b.0, b.1)).then(a.2.total_cmp(&b.2)));
+    }
+
+    /// Emits the guests attached at `(node, slot)`, nearest first.
+    fn emit_guests(&mut self, node: u32, slot: Slot) {
+        let key = (node, slot as u8);
+        let start = self.guests.partition_point(|g| (g.0, g.1) < key);
+        let end = start + self.guests[start..].iter().take_while(|g| (g.0, g.1) == key).count();
+        for gi in start..end {
+            match self.guests[gi].3 {
+                Guest::Moving(mi) => self.moving(mi),
+                Guest::Light(li) => {
+                    if lights::add_light_point(
+                        &self.db.scene,
+                        li,
+                        &self.view,
+                        &mut self.setup,
+                        &mut self.out,
+                        &mut self.scratch.window,
+                    ) {
+                        self.counters.lights += 1;
+                    }
+                }
+            }
+        }
+    }
+
+    fn moving(&mut self, mi: usize) {
+        let db = self.db;
+        let m = &db.moving[mi];
+        let inst = m.instance as usize;
+        let to_eye = self.model_to_eye[inst];
+        let info = &db.instances[inst];
+        let eye_model = info.world_to_model.transform_point3(self.view.position);
+        // P5: the light direction is taken into model coordinates.
+        let sun_model = (DMat3::from_mat4(info.model_to_world).transpose() * self.sun_world).normalize_or_zero();
+        m.bsp.traverse(eye_model, |step| {
+            if let Visit::Face(f) = step {
+                self.face(&m.bsp.faces[f as usize], to_eye, eye_model, sun_model);
+            }
+        });
+    }
+
+    /// Transforms, culls, clips and sets up one face. `to_eye` takes the face's
+    /// coordinates to the eye's; `eye_local` is the eye in the face's coordinates.
+    fn face(&mut self, face: &BspFace, to_eye: DMat4, eye_local: DVec3, sun: DVec3) {
+        let Some(instance_class) = self.class[face.instance as usize] else { return };
+        let counters = &mut self.counters;
+        counters.faces_in += 1;
+        // Back-face culling: the eye must be in front of the face's plane.
+        if face.plane.distance(eye_local) <= 0.0 {
+            counters.backfacing += 1;
+            return;
+        }
+        let db = self.db;
+        let view = &self.view;
+        let material = &db.scene.materials[face.material as usize];
+        let env = &db.scene.env;
+        let scratch = &mut self.scratch;
+        scratch.eye.clear();
+        let mut and = 0x1Fu8;
+        let mut or = 0u8;
+        for v in &face.vertices {
+            let p = to_eye.transform_point3(v.position);
+            let code = view.outcode(p);
+            and &= code;
+            or |= code;
+            let normal = match material.shading {
+                crate::db::Shading::Smooth => v.normal.as_dvec3(),
+                crate::db::Shading::Flat => face.plane.normal,
+            };
+            let ambient = f64::from(env.ambient);
+            let cos_a = if material.emissive { 1.0 } else { ambient + (1.0 - ambient) * normal.dot(sun).max(0.0) };
+            // P5: P' = Pb + (P cos a - Pb) exp(-beta z).
+            let pb = f64::from(env.background_brightness);
+            let intensity = pb + (f64::from(v.intensity) * cos_a - pb) * (-f64::from(env.attenuation) * p.z).exp();
+            scratch.eye.push(EyeVertex { position: p, intensity });
+        }
+        if and != 0 {
+            counters.outside += 1;
+            return;
+        }
+        let face_class = if instance_class == 1 || or == 0 {
+            1
+        } else if or & 0x10 != 0 {
+            3
+        } else {
+            2
+        };
+        counters.face_class[face_class - 1] += 1;
+        // The eye-space plane, from the transformed vertices.
+        let plane_eye = eye_plane(&scratch.eye);
+        // Class 3: clip by the near plane first, in eye space.
+        if face_class == 3 {
+            counters.near_clipped += 1;
+            clip_near(&scratch.eye, &mut scratch.clipped_eye);
+            std::mem::swap(&mut scratch.eye, &mut scratch.clipped_eye);
+        }
+        if scratch.eye.len() < 3 {
+            counters.degenerate += 1;
+            return;
+        }
+        scratch.screen.clear();
+        scratch.screen.extend(scratch.eye.iter().map(|v| view.project(v.position)));
+        let outline: &[DVec2] = if face_class == 1 {
+            &scratch.screen
+        } else {
+            counters.window_clipped += 1;
+            let win = Window { x0: 0.0, y0: 0.0, x1: f64::from(view.screen.width), y1: f64::from(view.screen.height) };
+            match self.config.clipper {
+                Clipper::Automaton => clip::clip_automaton(&scratch.screen, &win, &mut scratch.window),
+                Clipper::AllBorders => clip::clip_all_borders(&scratch.screen, &win, &mut scratch.window),
+                Clipper::Reference => clip::clip_reference(&scratch.screen, &win, &mut scratch.window),
+            }
+            &scratch.window
+        };
+        let source = Source { kind: PrimitiveKind::Face, material: face.material, ids: (face.instance, face.face) };
+        let ok = self.setup.add_face(
+            source,
+            Some(material),
+            material.color,
+            &plane_eye,
+            &scratch.eye,
+            outline,
+            &self.model_to_eye[face.instance as usize],
+            &mut self.out,
+        );
+        if !ok {
+            counters.degenerate += 1;
+        }
+    }
+}
+
+/// The plane of an eye-space polygon (Newell), normal towards the front.
+fn eye_plane(vs: &[EyeVertex]) -> Plane {
+    let p0 = vs[0].position;
+    let mut n = DVec3::ZERO;
+    for i in 1..vs.len() - 1 {
+        n += (vs[i].position - p0).cross(vs[i + 1].position - p0);
+    }
+    let normal = n.normalize_or_zero();
+    Plane { normal, d: normal.dot(p0) }
+}
+
+/// Sutherland-Hodgman by the near plane `Z = NEAR`, interpolating intensity.
+fn clip_near(input: &[EyeVertex], out: &mut Vec<EyeVertex>) {
+    out.clear();
+    let n = input.len();
+    for i in 0..n {
+        let a = input[i];
+        let b = input[(i + 1) % n];
+        let (ina, inb) = (a.position.z >= NEAR, b.position.z >= NEAR);
+        if ina {
+            out.push(a);
+        }
+        if ina != inb {
+            let t = (NEAR - a.position.z) / (b.position.z - a.position.z);
+            let mut position = a.position + (b.position - a.position) * t;
+            position.z = NEAR;
+            out.push(EyeVertex { position, intensity: a.intensity + (b.intensity - a.intensity) * t });
+        }
+    }
+}
+
+/// Convenience: validates nothing, builds the database and the frame list of the
+/// scene's own eye and screen.
+pub fn frame_of_scene(db: &Database, config: &GpConfig) -> (FrameList, GpCounters) {
+    let mut counters = GpCounters::default();
+    let f = frame(db, &db.scene.eye, db.scene.screen, config, &mut counters);
+    (f, counters)
+}

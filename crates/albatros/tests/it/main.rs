@@ -2,4 +2,6 @@
 
 mod canonical;
 mod clip;
+mod gp;
 mod load;
+mod vp;

@@ -1,0 +1,294 @@
+//! Set-up of a clipped polygon for the video processor (SYSTEM.md 3, "Setup for the
+//! VP"; P2).
+//!
+//! Input: the polygon's plane and vertices in eye coordinates, its clipped screen
+//! outline, its material. Output: one [`FramePolygon`] in the frame list with
+//! - the outline snapped to the 1/256-pixel grid, duplicate, collinear and (after
+//!   snapping) reflex vertices removed, so that it is strictly convex;
+//! - its edges in the VP's code ([`EdgeCode`]);
+//! - `1/Z` as a linear function of pixel `(x, y)` from the plane equation;
+//! - intensity, and texture `u`, `v`, as fractional-linear functions
+//!   `q = (A x + B y + C) / (1/Z)`: a quantity linear over the face in eye space,
+//!   `q = q0 + g . (P - P0)`, divided by `Z` is linear on the screen;
+//! - the texture-origin shift of P2: after the transform to eye coordinates the
+//!   integer part of `D'` is dropped, so `u`, `v` stay small near the eye whatever the
+//!   size of the textured plane;
+//! - `PAR = (1/L) (1/|Dn|)` for the level of detail (P2), `1/L = |grad u|`.
+
+use glam::{DMat3, DMat4, DVec2, DVec3};
+
+use super::View;
+use crate::db::bsp::Plane;
+use crate::db::{Material, Rgb, Scene};
+use crate::frame::{FracLin, FrameList, FramePolygon, PolyTexture, PrimitiveKind, ScreenVertex};
+use crate::vp::edge::{EdgeCode, ScreenFx};
+use crate::vp::gq::CellProcessors;
+
+/// A vertex in eye coordinates with its brightness.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EyeVertex {
+    /// Eye-space position.
+    pub position: DVec3,
+    /// Brightness (P5 formula applied).
+    pub intensity: f64,
+}
+
+/// What the set-up needs to know about where a polygon came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Source {
+    /// Face or light.
+    pub kind: PrimitiveKind,
+    /// Material index (`u32::MAX` for lights).
+    pub material: u32,
+    /// Instance and face (or light index and `u32::MAX`).
+    pub ids: (u32, u32),
+}
+
+/// The set-up unit of the GP for one frame.
+pub struct Setup {
+    view: View,
+    root_side: u32,
+    background: Rgb,
+    fog: Rgb,
+    visibility: f32,
+    snapped: Vec<(ScreenFx, ScreenFx)>,
+}
+
+impl Setup {
+    /// Set-up for a frame of `scene` seen through `view`.
+    pub fn new(scene: &Scene, view: &View) -> Self {
+        let root_level = CellProcessors::root_level_for(view.screen.width, view.screen.height);
+        Self {
+            view: *view,
+            root_side: 4 << root_level,
+            background: scene.env.sky,
+            fog: scene.env.fog_color,
+            visibility: scene.env.visibility,
+            snapped: Vec::new(),
+        }
+    }
+
+    /// An empty frame list with this frame's header.
+    pub fn frame_list(&self) -> FrameList {
+        FrameList {
+            width: self.view.screen.width,
+            height: self.view.screen.height,
+            background: self.background,
+            fog_color: self.fog,
+            visibility: self.visibility,
+            pixel_angle: (1.0 / self.view.focal) as f32,
+            ..FrameList::default()
+        }
+    }
+
+    /// `1/Z` as a linear function of pixel coordinates, from the eye-space plane.
+    fn inv_z(&self, plane: &Plane) -> Option<[f64; 3]> {
+        let (n, d) = (plane.normal, plane.d);
+        if d.abs() < 1e-12 {
+            return None;
+        }
+        let f = self.view.focal;
+        let (cx, cy) = (self.view.center.x, self.view.center.y);
+        Some([n.x / (f * d), n.y / (f * d), (n.z - (n.x * cx + n.y * cy) / f) / d])
+    }
+
+    /// The screen triple of a quantity `q = g . P + k` linear in eye space (on the
+    /// plane): `q / Z = g . (x', y', 1) + k / Z`, `x' = (x - cx) / f`.
+    fn screen_triple(&self, g: DVec3, k: f64, inv_z: &[f64; 3]) -> FracLin {
+        let f = self.view.focal;
+        let (cx, cy) = (self.view.center.x, self.view.center.y);
+        FracLin {
+            a: (g.x / f + k * inv_z[0]) as f32,
+            b: (g.y / f + k * inv_z[1]) as f32,
+            c: (g.z - (g.x * cx + g.y * cy) / f + k * inv_z[2]) as f32,
+        }
+    }
+
+    /// Sets up a face and appends it to `out`; `false` if it vanished (degenerate
+    /// after snapping, or seen edge-on).
+    #[allow(clippy::too_many_arguments)]
+    pub fn add_face(
+        &mut self,
+        source: Source,
+        material: Option<&Material>,
+        color: Rgb,
+        plane_eye: &Plane,
+        eye_poly: &[EyeVertex],
+        outline: &[DVec2],
+        model_to_eye: &DMat4,
+        out: &mut FrameList,
+    ) -> bool {
+        let Some(inside_positive) = snap_outline(outline, &mut self.snapped) else { return false };
+        let Some(inv_z) = self.inv_z(plane_eye) else { return false };
+        let intensity = self.linear_on_face(plane_eye, eye_poly, &inv_z);
+        let texture = material.and_then(|m| {
+            let t = m.texture.as_ref()?;
+            let q = model_to_eye.inverse();
+            let ql = DMat3::from_mat4(q);
+            let qt = q.w_axis.truncate();
+            let inv_l = 1.0 / f64::from(t.period);
+            let axis = |a: glam::Vec3| {
+                let g_model = a.as_dvec3() * inv_l;
+                let d_model = -t.origin.as_dvec3().dot(g_model);
+                let g_eye = ql.transpose() * g_model;
+                let d_eye = g_model.dot(qt) + d_model;
+                // P2: drop the integer part of D' (the texture origin moves to a
+                // point near the eye by a whole number of periods).
+                let d_shift = d_eye - d_eye.floor();
+                (self.screen_triple(g_eye, d_shift, &inv_z), g_eye.length())
+            };
+            let (u, len_u) = axis(t.u_axis);
+            let (v, _) = axis(t.v_axis);
+            let par = (len_u / plane_eye.d.abs()) as f32;
+            Some(PolyTexture { map: t.map, u, v, par, color1: t.color1, color2: t.color2 })
+        });
+        let vstart = out.vertices.len() as u32;
+        let estart = out.edges.len() as u32;
+        let inv_z32 = FracLin { a: inv_z[0] as f32, b: inv_z[1] as f32, c: inv_z[2] as f32 };
+        let n = self.snapped.len();
+        for i in 0..n {
+            let (x, y) = (self.snapped[i].0.to_f32(), self.snapped[i].1.to_f32());
+            out.vertices.push(ScreenVertex { x, y, inv_w: inv_z32.eval(x, y) });
+            let e = EdgeCode::new(self.snapped[i], self.snapped[(i + 1) % n], inside_positive, self.root_side)
+                .expect("snapped vertices are distinct");
+            out.edges.push(e);
+        }
+        out.polygons.push(FramePolygon {
+            vertices: vstart..out.vertices.len() as u32,
+            edges: estart..out.edges.len() as u32,
+            kind: source.kind,
+            material: source.material,
+            source: source.ids,
+            color,
+            inv_z: inv_z32,
+            intensity,
+            texture,
+            transparency: material.map_or(0, |m| m.transparency.code()),
+        });
+        true
+    }
+
+    /// Intensity as a fractional-linear function: fitted on the three vertices that
+    /// span the largest triangle (exact for a linear distribution).
+    fn linear_on_face(&self, plane: &Plane, vs: &[EyeVertex], inv_z: &[f64; 3]) -> FracLin {
+        let n = vs.len();
+        let mut best = (0.0, 0, 1, 2);
+        // The widest triangle: first vertex against the farthest pair is enough for
+        // convex polygons, but n is small, so try all pairs from a few anchors.
+        for i in 0..n.min(4) {
+            for j in i + 1..n {
+                for k in j + 1..n {
+                    let a = (vs[j].position - vs[i].position).cross(vs[k].position - vs[i].position).length();
+                    if a > best.0 {
+                        best = (a, i, j, k);
+                    }
+                }
+            }
+        }
+        let (_, i, j, k) = best;
+        let (p0, p1, p2) = (vs[i].position, vs[j].position, vs[k].position);
+        let (q0, q1, q2) = (vs[i].intensity, vs[j].intensity, vs[k].intensity);
+        // g . (p1 - p0) = q1 - q0, g . (p2 - p0) = q2 - q0, g . N = 0.
+        let m = DMat3::from_cols(p1 - p0, p2 - p0, plane.normal).transpose();
+        let g =
+            if m.determinant().abs() > 1e-18 { m.inverse() * DVec3::new(q1 - q0, q2 - q0, 0.0) } else { DVec3::ZERO };
+        let k0 = q0 - g.dot(p0);
+        self.screen_triple(g, k0, inv_z)
+    }
+}
+
+/// Snaps an outline to the 1/256-pixel grid into `s`, removes duplicate, collinear
+/// and reflex vertices (snapping can bend a nearly straight corner inwards; the VP
+/// needs a strictly convex polygon), and returns the orientation (`true`: the interior
+/// is where `(b - a) x (p - a) > 0`), or `None` for a degenerate outline.
+pub fn snap_outline(outline: &[DVec2], s: &mut Vec<(ScreenFx, ScreenFx)>) -> Option<bool> {
+    s.clear();
+    for p in outline {
+        let q = (ScreenFx::from_f64(p.x), ScreenFx::from_f64(p.y));
+        if s.last() != Some(&q) {
+            s.push(q);
+        }
+    }
+    while s.len() > 1 && s.first() == s.last() {
+        s.pop();
+    }
+    if s.len() < 3 {
+        return None;
+    }
+    let area2 = shoelace(s);
+    if area2 == 0 {
+        return None;
+    }
+    let sign = area2.signum();
+    let mut i = 0;
+    while s.len() >= 3 && i < s.len() {
+        let n = s.len();
+        let (a, b, c) = (s[(i + n - 1) % n], s[i], s[(i + 1) % n]);
+        if cross(a, b, c) * sign <= 0 {
+            s.remove(i);
+            // The neighbours' turns changed: look again from the previous vertex.
+            i = i.saturating_sub(1);
+        } else {
+            i += 1;
+        }
+    }
+    // One more pass around the wrap.
+    let mut changed = true;
+    while changed && s.len() >= 3 {
+        changed = false;
+        let n = s.len();
+        for k in 0..n {
+            if cross(s[(k + n - 1) % n], s[k], s[(k + 1) % n]) * sign <= 0 {
+                s.remove(k);
+                changed = true;
+                break;
+            }
+        }
+    }
+    (s.len() >= 3 && shoelace(s) != 0).then_some(sign > 0)
+}
+
+/// Appends a flat polygon given by its screen outline (any orientation, inside the
+/// screen) with constant depth `1/Z = inv_z` and colour: for tests and tools that
+/// feed the VP without a scene. `false` if it is degenerate after snapping.
+pub fn push_flat_polygon(out: &mut FrameList, outline: &[DVec2], color: Rgb, inv_z: f32) -> bool {
+    let mut snapped = Vec::new();
+    let Some(inside_positive) = snap_outline(outline, &mut snapped) else { return false };
+    let root_side = 4u32 << CellProcessors::root_level_for(out.width, out.height);
+    let vstart = out.vertices.len() as u32;
+    let estart = out.edges.len() as u32;
+    let n = snapped.len();
+    for i in 0..n {
+        out.vertices.push(ScreenVertex { x: snapped[i].0.to_f32(), y: snapped[i].1.to_f32(), inv_w: inv_z });
+        out.edges.push(EdgeCode::new(snapped[i], snapped[(i + 1) % n], inside_positive, root_side).expect("distinct"));
+    }
+    out.polygons.push(FramePolygon {
+        vertices: vstart..out.vertices.len() as u32,
+        edges: estart..out.edges.len() as u32,
+        kind: PrimitiveKind::Face,
+        material: 0,
+        source: (0, out.polygons.len() as u32),
+        color,
+        inv_z: FracLin { a: 0.0, b: 0.0, c: inv_z },
+        intensity: FracLin { a: 0.0, b: 0.0, c: inv_z },
+        texture: None,
+        transparency: 0,
+    });
+    true
+}
+
+fn shoelace(s: &[(ScreenFx, ScreenFx)]) -> i64 {
+    let n = s.len();
+    (0..n)
+        .map(|i| {
+            let (a, b) = (s[i], s[(i + 1) % n]);
+            i64::from(a.0 .0) * i64::from(b.1 .0) - i64::from(b.0 .0) * i64::from(a.1 .0)
+        })
+        .sum()
+}
+
+fn cross(a: (ScreenFx, ScreenFx), b: (ScreenFx, ScreenFx), c: (ScreenFx, ScreenFx)) -> i64 {
+    let (abx, aby) = (i64::from(b.0 .0 - a.0 .0), i64::from(b.1 .0 - a.1 .0));
+    let (bcx, bcy) = (i64::from(c.0 .0 - b.0 .0), i64::from(c.1 .0 - b.1 .0));
+    abx * bcy - aby * bcx
+}

@@ -1,0 +1,75 @@
+//! Colour computers (CC, P2 fig. 1-2): the colour of every visible pixel.
+//!
+//! The fractional-linear functions of a polygon (`1/Z`, intensity; texture `u`, `v`
+//! later) are evaluated once per 4 x 4 cell at the point Q, the centre of the cell's
+//! pixel (1, 1), and stepped to the 16 pixels by `A dx + B dy`, `dx, dy` in
+//! `{-1, 0, 1, 2}` (P2 fig. 2). `Z` comes from a reciprocal of `1/Z`; intensity is
+//! the numerator over `1/Z`: perspective correct.
+//!
+//! Fog (P2): `C = C0 f + C_fog (1 - f)`, `f = exp(-Z / Z0)`.
+//!
+//! The visible pixels of a cell are dealt to four channels by their position in each
+//! 2 x 2 quad (channel `(x & 1) + 2 (y & 1)`), so that an edge's pixels spread evenly.
+
+use glam::Vec3;
+
+use super::spp::Visible;
+use crate::frame::{FrameList, FramePolygon};
+use crate::model::stats::Counters;
+
+/// Number of colour channels (P1: four).
+pub const CHANNELS: usize = 4;
+
+/// The channel that colours pixel `i` (`4 y + x`) of a cell.
+#[inline]
+pub fn channel(i: usize) -> usize {
+    (i & 1) | ((i >> 2) & 1) << 1
+}
+
+/// The colour computers' per-frame registers (P2: loaded from the host).
+#[derive(Clone, Copy, Debug)]
+pub struct ColorComputers {
+    /// Fog colour `C_fog`.
+    pub fog_color: Vec3,
+    /// `1 / Z0`, zero for no fog.
+    pub inv_visibility: f32,
+}
+
+impl ColorComputers {
+    /// The registers for a frame.
+    pub fn new(frame: &FrameList) -> Self {
+        let inv_visibility = if frame.visibility.is_finite() { 1.0 / frame.visibility } else { 0.0 };
+        Self { fog_color: frame.fog_color, inv_visibility }
+    }
+
+    /// Colours the visible pixels of one cell of polygon `poly` into `out` (pixels
+    /// with no visible subpixel are left alone).
+    pub fn shade<const STATS: bool>(
+        &self,
+        poly: &FramePolygon,
+        vis: &Visible,
+        out: &mut [Vec3; 16],
+        counters: &mut Counters,
+    ) {
+        // Q: centre of the cell's pixel (1, 1).
+        let (qx, qy) = (vis.px as f32 + 1.5, vis.py as f32 + 1.5);
+        let z_q = poly.inv_z.eval(qx, qy);
+        let i_q = poly.intensity.eval(qx, qy);
+        for (i, c) in out.iter_mut().enumerate() {
+            if vis.sets[i] == 0 {
+                continue;
+            }
+            let dx = (i & 3) as f32 - 1.0;
+            let dy = (i >> 2) as f32 - 1.0;
+            let inv_z = z_q + poly.inv_z.a * dx + poly.inv_z.b * dy;
+            let z = 1.0 / inv_z.max(f32::MIN_POSITIVE);
+            let intensity = ((i_q + poly.intensity.a * dx + poly.intensity.b * dy) * z).max(0.0);
+            let base = poly.color * intensity;
+            let f = (-z * self.inv_visibility).exp();
+            *c = base * f + self.fog_color * (1.0 - f);
+            if STATS {
+                counters.color.pixels_per_channel[channel(i)] += 1;
+            }
+        }
+    }
+}

@@ -1,0 +1,246 @@
+//! The edge code of the video processor (P1 fig. 2): how one edge of a convex polygon
+//! is described to the cell processors (GQ) and subpixel processors (SPP).
+//!
+//! An edge is the line through two vertices snapped to the 1/256-pixel grid
+//! ([`SNAP_BITS`]). Its code is two flags and a linear function:
+//! - **TG**: [`Tg::Vertical`] when the line is steeper than 45 degrees (|dy| > |dx|),
+//!   else [`Tg::Horizontal`];
+//! - **LR**: `true` when the polygon lies on the side of greater V ("right" of a
+//!   vertical edge, "below" a horizontal one);
+//! - **V**: for a vertical edge, the X where the line meets a horizontal line `y`;
+//!   for a horizontal edge, the Y where it meets a vertical line `x`. P1 gives V at the
+//!   two opposite borders of a cell (V1, V2); here `V(t) = origin + slope * t` for any
+//!   integer pixel line `t`, from which V1 and V2 of every cell follow.
+//!
+//! # Numbers: why every cell sees the same bits
+//! V is an [`EdgeCoord`]: an `i64` with [`EDGE_FRAC_BITS`] = 32 fractional bits. The
+//! line is first fixed by its values at the root cell's two borders, rounded down to
+//! 2^-16 pixel ([`ROOT_V_BITS`]) from the exact rational through the snapped vertices
+//! (computed in `i128`). Every other value is an exact dyadic interpolation of those
+//! two: `slope = (V2 - V1) / 2^(L+2)` is exact because `V2 - V1` has 16 zero low bits
+//! and the root side `2^(L+2) <= 2^13`. So `V(t)`, and every midpoint `(V1 + V2) / 2`
+//! the GQ forms by one addition and a shift, are exact: **an edge's value at a cell is
+//! the same whichever cell the descent started from, whichever polygon the edge
+//! belongs to and in whichever direction it is listed** (the endpoints are put in a
+//! canonical order first). This is what makes shared edges watertight.
+
+use serde::Serialize;
+
+/// Fractional bits of snapped screen coordinates: vertices lie on a 1/256-pixel grid.
+pub const SNAP_BITS: u32 = 8;
+/// One pixel in snapped units.
+pub const SNAP_ONE: i32 = 1 << SNAP_BITS;
+/// Fractional bits of an [`EdgeCoord`].
+pub const EDGE_FRAC_BITS: u32 = 32;
+/// Fractional bits kept when an edge's values at the root borders are rounded.
+pub const ROOT_V_BITS: u32 = 16;
+/// The largest root level the numbers support: root side `4 * 2^11 = 8192` pixels.
+pub const MAX_ROOT_LEVEL: u32 = 11;
+
+/// A snapped screen coordinate: pixels in 24.8 fixed point.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+pub struct ScreenFx(pub i32);
+
+impl ScreenFx {
+    /// Rounds a pixel coordinate to the snapping grid (callers pass finite values
+    /// inside the clipped window).
+    pub fn from_f64(v: f64) -> Self {
+        Self((v * f64::from(SNAP_ONE)).round() as i32)
+    }
+
+    /// The coordinate in pixels.
+    pub fn to_f32(self) -> f32 {
+        self.0 as f32 / SNAP_ONE as f32
+    }
+}
+
+/// A value of V: pixels as `i64` with [`EDGE_FRAC_BITS`] fractional bits.
+///
+/// Bit layout: `[63..32]` signed integer pixels, `[31..0]` fraction.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+pub struct EdgeCoord(pub i64);
+
+impl EdgeCoord {
+    /// The value of integer pixel `p`.
+    #[inline]
+    pub const fn pixels(p: i64) -> Self {
+        Self(p << EDGE_FRAC_BITS)
+    }
+
+    /// The value as a float (for tests and display).
+    pub fn to_f64(self) -> f64 {
+        self.0 as f64 / (1u64 << EDGE_FRAC_BITS) as f64
+    }
+}
+
+/// TG: the edge's class by its angle to the X axis.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+pub enum Tg {
+    /// Angle to X at most 45 degrees: V is a Y, taken along vertical lines `x = t`.
+    Horizontal = 0,
+    /// Angle over 45 degrees: V is an X, taken along horizontal lines `y = t`.
+    Vertical = 1,
+}
+
+/// One edge in the VP's code.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+pub struct EdgeCode {
+    /// Vertical or horizontal.
+    pub tg: Tg,
+    /// The polygon lies on the side of greater V.
+    pub lr: bool,
+    /// V at line `t = 0`.
+    pub origin: EdgeCoord,
+    /// Change of V per pixel of `t`.
+    pub slope: EdgeCoord,
+    /// The exact line through the snapped endpoints, for [`super::tables::SppMode::Exact`].
+    pub exact: ExactLine,
+}
+
+/// The exact line through an edge's snapped endpoints: `E(x, y) = a x + b y + c`,
+/// `x`, `y` in snapped units (1/256 pixel), integers; oriented so that `E > 0` on the
+/// side of greater V (so `a > 0` for a vertical edge, `b > 0` for a horizontal one).
+/// The same for both polygons sharing the edge and for both directions.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+pub struct ExactLine {
+    /// Coefficient of x.
+    pub a: i64,
+    /// Coefficient of y.
+    pub b: i64,
+    /// Constant.
+    pub c: i64,
+}
+
+impl ExactLine {
+    /// Whether the point `(x, y)` (snapped units) lies on the side of greater V, with
+    /// points on the line decided as if moved by `(e, e^2)` for an infinitesimal
+    /// `e > 0`. One perturbation for every line: at a vertex shared by many edges the
+    /// decisions are those of one point off all the lines, so a fan of polygons
+    /// splits every sample exactly once.
+    #[inline]
+    pub fn greater_side(&self, x: i64, y: i64) -> bool {
+        let e = self.a * x + self.b * y + self.c;
+        if e != 0 {
+            e > 0
+        } else if self.a != 0 {
+            self.a > 0
+        } else {
+            self.b > 0
+        }
+    }
+}
+
+impl EdgeCode {
+    /// The code of the line through `a` and `b` (snapped, distinct), for a root cell
+    /// of `root_side = 4 * 2^L` pixels; `inside_positive` tells whether the polygon
+    /// lies where the cross product `(b - a) x (p - a)` is positive (screen axes,
+    /// y down). Returns `None` when `a == b`.
+    pub fn new(
+        a: (ScreenFx, ScreenFx),
+        b: (ScreenFx, ScreenFx),
+        inside_positive: bool,
+        root_side: u32,
+    ) -> Option<Self> {
+        let (ax, ay) = (i64::from(a.0 .0), i64::from(a.1 .0));
+        let (bx, by) = (i64::from(b.0 .0), i64::from(b.1 .0));
+        let (dx, dy) = (bx - ax, by - ay);
+        if dx == 0 && dy == 0 {
+            return None;
+        }
+        let tg = if dy.abs() > dx.abs() { Tg::Vertical } else { Tg::Horizontal };
+        // The side of greater V: for a vertical edge the point a + (1, 0), whose cross
+        // product is -dy; for a horizontal edge a + (0, 1), cross product dx.
+        let greater_side_positive = match tg {
+            Tg::Vertical => -dy > 0,
+            Tg::Horizontal => dx > 0,
+        };
+        let lr = greater_side_positive == inside_positive;
+        // Swap to V = coordinate along (u), t = coordinate across (w).
+        let (au, aw, bu, bw) = match tg {
+            Tg::Vertical => (ax, ay, bx, by),
+            Tg::Horizontal => (ay, ax, by, bx),
+        };
+        // Canonical order: increasing t, so the rounding cannot depend on direction.
+        let (au, aw, bu, bw) = if aw <= bw { (au, aw, bu, bw) } else { (bu, bw, au, aw) };
+        let (du, dw) = (i128::from(bu - au), i128::from(bw - aw));
+        debug_assert!(dw > 0);
+        // V(t) = au + (t - aw) du / dw, in snapped units; at t = 0 and t = root_side,
+        // rounded down to 2^-ROOT_V_BITS pixel.
+        let scale = 1i128 << (ROOT_V_BITS - SNAP_BITS);
+        let v_at = |t_snapped: i128| -> i128 {
+            let num = (i128::from(au) * dw + (t_snapped - i128::from(aw)) * du) * scale;
+            num.div_euclid(dw)
+        };
+        let side = i128::from(root_side);
+        let v1 = v_at(0);
+        let v2 = v_at(side * i128::from(SNAP_ONE));
+        let shift = EDGE_FRAC_BITS - ROOT_V_BITS;
+        let origin = (v1 << shift) as i64;
+        let span = (v2 - v1) << shift;
+        // Exact: span has `shift` >= 16 zero low bits and root_side <= 2^13.
+        debug_assert_eq!(span % side, 0);
+        let slope = (span / side) as i64;
+        // E = dy (x - ax) - dx (y - ay), then oriented towards greater V.
+        let (mut a, mut b) = (dy, -dx);
+        let flip = match tg {
+            Tg::Vertical => a < 0,
+            Tg::Horizontal => b < 0,
+        };
+        if flip {
+            (a, b) = (-a, -b);
+        }
+        let c = -(a * ax + b * ay);
+        Some(Self { tg, lr, origin: EdgeCoord(origin), slope: EdgeCoord(slope), exact: ExactLine { a, b, c } })
+    }
+
+    /// V on the integer pixel line `t` (a row `y = t` for a vertical edge, a column
+    /// `x = t` for a horizontal one). Exact.
+    #[inline]
+    pub fn v_at(&self, t: i64) -> EdgeCoord {
+        EdgeCoord(self.origin.0 + self.slope.0 * t)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn p(x: f64, y: f64) -> (ScreenFx, ScreenFx) {
+        (ScreenFx::from_f64(x), ScreenFx::from_f64(y))
+    }
+
+    #[test]
+    fn direction_does_not_change_the_line() {
+        let a = p(10.3, 3.7);
+        let b = p(13.9, 200.1);
+        let e1 = EdgeCode::new(a, b, true, 512).unwrap();
+        let e2 = EdgeCode::new(b, a, false, 512).unwrap();
+        assert_eq!(e1, e2, "same line, same side => same code");
+        let e3 = EdgeCode::new(b, a, true, 512).unwrap();
+        assert_eq!((e1.origin, e1.slope, e1.tg), (e3.origin, e3.slope, e3.tg));
+        assert_ne!(e1.lr, e3.lr);
+    }
+
+    #[test]
+    fn values_are_close_to_the_true_line() {
+        let e = EdgeCode::new(p(10.0, 0.0), p(20.0, 100.0), true, 512).unwrap();
+        assert_eq!(e.tg, Tg::Vertical);
+        for t in [0i64, 50, 100, 511] {
+            let want = 10.0 + t as f64 * 0.1;
+            assert!((e.v_at(t).to_f64() - want).abs() < 1e-4, "t={t}");
+        }
+        let h = EdgeCode::new(p(0.0, 5.0), p(100.0, 15.0), true, 512).unwrap();
+        assert_eq!(h.tg, Tg::Horizontal);
+        assert!((h.v_at(50).to_f64() - 10.0).abs() < 1e-4);
+    }
+
+    #[test]
+    fn lr_marks_the_inside() {
+        // Clockwise on screen (y down): (0,0) -> (10,0) -> (0,10); inside is where the
+        // cross product is positive.
+        let right = EdgeCode::new(p(0.0, 10.0), p(0.0, 0.0), true, 64).unwrap();
+        // Edge x = 0 going up, interior (x > 0): cross((0,-10),(1,0)) = 10 > 0.
+        assert_eq!(right.tg, Tg::Vertical);
+        assert!(right.lr);
+    }
+}

@@ -1,0 +1,371 @@
+//! Cell processors (GQ, P1 "клеточные процессоры"): the recursive split of the screen
+//! into cells, one GQ per level, with a mask memory (MM) on every level.
+//!
+//! # Design rules of this hot module
+//! - A cell of level `k` has side `4 * 2^(L-k)` pixels; level 0 is the root covering
+//!   the screen, level `L` cells are 4 x 4 pixels and go to the SPPs.
+//! - For each active (crossing) edge the GQ forms `(V1 + V2) / 2` by one addition and a
+//!   shift, looks up the edge's CI/CRI codes in the [`GqRom`] with the high bits of
+//!   V1, (V1+V2)/2, V2, and combines them by P1 eq. (2):
+//!   `CRI = !M & AND CRI_i`, `CI = !M & AND CI_i`, `CR = CRI & !CI`, `M |= CI`.
+//! - Children's V1, V2 are the parent's V1 and the midpoint, or the midpoint and V2:
+//!   no multiplication below the starting cell.
+//! - Values are exact (see [`super::edge`]), so the decisions at a cell do not depend on
+//!   where the descent started; decisions are sound for the SPP table, so the level at
+//!   which an edge is decided, and whether a mask dropped a cell early, never changes
+//!   which subpixels a polygon gets. **Masks change work, never the image.**
+//! - No allocation per polygon or per cell: active-edge lists live in per-level scratch
+//!   vectors owned by the [`CellProcessors`].
+
+use super::edge::{EdgeCode, EdgeCoord, Tg, EDGE_FRAC_BITS};
+use super::tables::GqRom;
+use crate::model::stats::Counters;
+
+/// An edge active in a cell: which edge of the polygon, and its V at the cell's first
+/// and second border (top/bottom for a vertical edge, left/right for a horizontal).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ActiveEdge {
+    /// Index into the polygon's edge list.
+    pub edge: u32,
+    /// V1: V at the cell's first border.
+    pub v1: EdgeCoord,
+    /// V2: V at the cell's second border.
+    pub v2: EdgeCoord,
+}
+
+/// Which levels' mask memories are in use: bit `k` for level `k` (levels `1..=L`).
+///
+/// P1 fig. 4 compares four modes, named here relative to the root level `L` (P1 has
+/// `L = 7`): I only level L, II levels L-1..L, III levels L-2..L, IV levels 1..L.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct MaskLevels(pub u32);
+
+impl MaskLevels {
+    /// No GQ mask memory (only the subpixel mask memory, which is always on).
+    pub const NONE: Self = Self(0);
+    /// Every level 1..=MAX.
+    pub const ALL: Self = Self(!1);
+
+    /// P1's mode I: only the last level.
+    pub fn mode_i(root_level: u32) -> Self {
+        Self::range(root_level, root_level)
+    }
+    /// P1's mode II: the last two levels.
+    pub fn mode_ii(root_level: u32) -> Self {
+        Self::range(root_level.saturating_sub(1).max(1), root_level)
+    }
+    /// P1's mode III: the last three levels.
+    pub fn mode_iii(root_level: u32) -> Self {
+        Self::range(root_level.saturating_sub(2).max(1), root_level)
+    }
+    /// P1's mode IV: levels 1 to L.
+    pub fn mode_iv(root_level: u32) -> Self {
+        Self::range(1, root_level)
+    }
+    /// Levels `lo..=hi` (level 0, the root, has no mask).
+    pub fn range(lo: u32, hi: u32) -> Self {
+        let mut bits = 0u32;
+        for k in lo.max(1)..=hi.min(31) {
+            bits |= 1 << k;
+        }
+        Self(bits)
+    }
+    /// Whether level `k` masks.
+    #[inline]
+    pub fn has(self, k: u32) -> bool {
+        k < 32 && self.0 >> k & 1 == 1
+    }
+}
+
+/// One level's mask memory: a bit per cell, "wholly covered by polygons already drawn".
+#[derive(Clone, Debug, Default)]
+pub struct MaskMemory {
+    /// Cells per row (only the cells that touch the screen are stored).
+    pub stride: usize,
+    /// Rows.
+    pub rows: usize,
+    bits: Vec<u64>,
+}
+
+impl MaskMemory {
+    fn new(stride: usize, rows: usize) -> Self {
+        Self { stride, rows, bits: vec![0; (stride * rows).div_ceil(64)] }
+    }
+
+    /// Whether cell `(cx, cy)` is covered; cells beyond the stored ones (wholly off the
+    /// screen) count as covered.
+    #[inline]
+    pub fn get(&self, cx: usize, cy: usize) -> bool {
+        if cx >= self.stride || cy >= self.rows {
+            return true;
+        }
+        let i = cy * self.stride + cx;
+        self.bits[i >> 6] >> (i & 63) & 1 == 1
+    }
+
+    #[inline]
+    fn set(&mut self, cx: usize, cy: usize) {
+        if cx < self.stride && cy < self.rows {
+            let i = cy * self.stride + cx;
+            self.bits[i >> 6] |= 1 << (i & 63);
+        }
+    }
+
+    fn clear(&mut self) {
+        self.bits.fill(0);
+    }
+}
+
+/// A cell: level and position (cell indices at that level).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Cell {
+    /// Level, 0 = root.
+    pub level: u32,
+    /// Column at that level.
+    pub x: u32,
+    /// Row at that level.
+    pub y: u32,
+}
+
+/// The GQ pipeline: one cell processor and one mask memory per level.
+#[derive(Clone, Debug)]
+pub struct CellProcessors {
+    /// Root level `L`: the root's side is `4 * 2^L` pixels.
+    pub root_level: u32,
+    /// Screen size.
+    pub width: u32,
+    /// Screen size.
+    pub height: u32,
+    /// Levels whose mask memory is in use.
+    pub masks: MaskLevels,
+    memories: Vec<MaskMemory>,
+    scratch: Vec<Vec<ActiveEdge>>,
+    codes: Vec<Vec<(u8, u8)>>,
+}
+
+/// A level-L cell handed to the SPPs, with the edges that cross it.
+pub struct Fragment<'a> {
+    /// Left pixel of the 4x4 cell.
+    pub px: u32,
+    /// Top pixel.
+    pub py: u32,
+    /// Edges crossing the cell, with V at its borders.
+    pub active: &'a [ActiveEdge],
+}
+
+/// The polygon the GQs are working on.
+pub struct GqPolygon<'a> {
+    /// Its edges.
+    pub edges: &'a [EdgeCode],
+    /// Whether it is opaque (only opaque polygons mark mask memories).
+    pub opaque: bool,
+    /// Bounding box in pixels, `[x0, x1) x [y0, y1)`, inside the screen.
+    pub bbox: [u32; 4],
+}
+
+impl CellProcessors {
+    /// The root level for a screen: the smallest `L` with `4 * 2^L >= max(w, h)`.
+    pub fn root_level_for(width: u32, height: u32) -> u32 {
+        let side = width.max(height).max(4);
+        let mut l = 0;
+        while (4u32 << l) < side {
+            l += 1;
+        }
+        l
+    }
+
+    /// GQs for a screen, with the given mask levels.
+    pub fn new(width: u32, height: u32, masks: MaskLevels) -> Self {
+        let root_level = Self::root_level_for(width, height);
+        let memories = (0..=root_level)
+            .map(|k| {
+                let side = 4u32 << (root_level - k);
+                MaskMemory::new(width.div_ceil(side) as usize, height.div_ceil(side) as usize)
+            })
+            .collect();
+        Self {
+            root_level,
+            width,
+            height,
+            masks,
+            memories,
+            scratch: vec![Vec::new(); root_level as usize + 1],
+            codes: vec![Vec::new(); root_level as usize + 1],
+        }
+    }
+
+    /// Clears every mask memory for a new frame.
+    pub fn clear(&mut self) {
+        for m in &mut self.memories {
+            m.clear();
+        }
+    }
+
+    /// The mask memory of level `k` (for pictures and tests).
+    pub fn memory(&self, k: u32) -> &MaskMemory {
+        &self.memories[k as usize]
+    }
+
+    /// Side in pixels of a cell of level `k`.
+    #[inline]
+    pub fn side(&self, k: u32) -> u32 {
+        4 << (self.root_level - k)
+    }
+
+    /// The smallest cell that holds the bounding box.
+    pub fn bounding_cell(&self, bbox: [u32; 4]) -> Cell {
+        let [x0, x1, y0, y1] = bbox;
+        let (x1, y1) = (x1.max(x0 + 1) - 1, y1.max(y0 + 1) - 1);
+        // The cell side must reach the highest differing bit of the pixel addresses.
+        let diff = (x0 ^ x1) | (y0 ^ y1) | 3;
+        let bits = 32 - diff.leading_zeros(); // side = 2^bits pixels
+        let level = (self.root_level + 2).saturating_sub(bits);
+        let shift = self.root_level + 2 - level;
+        Cell { level, x: x0 >> shift, y: y0 >> shift }
+    }
+
+    /// Runs the descent of one polygon from its bounding cell, calling `spp` for every
+    /// level-L cell that is inside or crossed and not masked. `STATS` selects counting.
+    pub fn descend<const STATS: bool>(
+        &mut self,
+        poly: &GqPolygon,
+        counters: &mut Counters,
+        spp: &mut impl FnMut(Fragment),
+    ) {
+        let start = self.bounding_cell(poly.bbox);
+        if STATS {
+            counters.levels[start.level as usize].starts += 1;
+        }
+        // A polygon whose starting cell lies in a covered cell of any masking level
+        // is dropped whole.
+        for k in 1..=start.level {
+            if self.masks.has(k) {
+                let shift = start.level - k;
+                if self.memories[k as usize].get((start.x >> shift) as usize, (start.y >> shift) as usize) {
+                    if STATS {
+                        counters.levels[start.level as usize].polygons_masked += 1;
+                    }
+                    return;
+                }
+            }
+        }
+        let side = i64::from(self.side(start.level));
+        let (x0, y0) = (i64::from(start.x) * side, i64::from(start.y) * side);
+        let list = &mut self.scratch[start.level as usize];
+        list.clear();
+        for (i, e) in poly.edges.iter().enumerate() {
+            let t0 = match e.tg {
+                Tg::Vertical => y0,
+                Tg::Horizontal => x0,
+            };
+            list.push(ActiveEdge { edge: i as u32, v1: e.v_at(t0), v2: e.v_at(t0 + side) });
+        }
+        if start.level == self.root_level {
+            let active = std::mem::take(&mut self.scratch[start.level as usize]);
+            spp(Fragment { px: start.x * 4, py: start.y * 4, active: &active });
+            self.scratch[start.level as usize] = active;
+            return;
+        }
+        self.split::<STATS>(start, poly, counters, spp);
+    }
+
+    /// One GQ step: splits `cell` (whose active edges are in `scratch[cell.level]`)
+    /// into four children and descends into those inside or crossed.
+    fn split<const STATS: bool>(
+        &mut self,
+        cell: Cell,
+        poly: &GqPolygon,
+        counters: &mut Counters,
+        spp: &mut impl FnMut(Fragment),
+    ) {
+        let rom = GqRom::get();
+        let k = cell.level as usize;
+        let child_level = cell.level + 1;
+        let side = i64::from(self.side(cell.level));
+        let half_shift = EDGE_FRAC_BITS + (self.root_level + 1 - cell.level);
+        let (ox, oy) = (EdgeCoord::pixels(i64::from(cell.x) * side), EdgeCoord::pixels(i64::from(cell.y) * side));
+
+        // Edge codes: CI_i, CRI_i per edge, ANDed (P1 eq. 2).
+        let mut ci_all = 0xFu8;
+        let mut cri_all = 0xFu8;
+        let (scratch_lo, _) = self.scratch.split_at_mut(k + 1);
+        let active = &scratch_lo[k];
+        let codes = &mut self.codes[k];
+        codes.clear();
+        for a in active.iter() {
+            let e = &poly.edges[a.edge as usize];
+            let origin = match e.tg {
+                Tg::Vertical => ox,
+                Tg::Horizontal => oy,
+            };
+            let vm = (a.v1.0 + a.v2.0) >> 1;
+            let b = |v: i64| (((v - origin.0) >> half_shift).clamp(-1, 2)) as i32;
+            let (ci, cri) = rom.lookup(GqRom::address(e.tg, e.lr, b(a.v1.0), b(vm), b(a.v2.0)));
+            codes.push((ci, cri));
+            ci_all &= ci;
+            cri_all &= cri;
+        }
+        // The mask memory of the children's level.
+        // Bits are only ever set on levels in use; cells wholly off the screen always
+        // read as covered (pre-masked), whatever the mode.
+        let mut m = 0u8;
+        let mem_on = self.masks.has(child_level);
+        let memory = &self.memories[child_level as usize];
+        for c in 0..4u32 {
+            if memory.get((cell.x * 2 + (c & 1)) as usize, (cell.y * 2 + (c >> 1)) as usize) {
+                m |= 1 << c;
+            }
+        }
+        let cri = !m & cri_all & 0xF;
+        let ci = !m & ci_all & 0xF;
+        if STATS {
+            let lc = &mut counters.levels[child_level as usize];
+            lc.tested += 4;
+            lc.edge_tests += active.len() as u64;
+            lc.inside += u64::from(ci.count_ones());
+            lc.crossed += u64::from((cri & !ci).count_ones());
+            lc.outside += u64::from((!cri_all & 0xF).count_ones());
+            lc.masked += u64::from((m & cri_all).count_ones());
+        }
+        if poly.opaque && mem_on {
+            for c in 0..4u32 {
+                if ci >> c & 1 == 1 {
+                    self.memories[child_level as usize]
+                        .set((cell.x * 2 + (c & 1)) as usize, (cell.y * 2 + (c >> 1)) as usize);
+                }
+            }
+        }
+        for c in 0..4u32 {
+            if cri >> c & 1 == 0 {
+                continue;
+            }
+            let (col, row) = (c & 1, c >> 1);
+            // Active edges of the child: those crossing it, with V1, V2 halved.
+            {
+                let (lo, hi) = self.scratch.split_at_mut(k + 1);
+                let (parent, child) = (&lo[k], &mut hi[0]);
+                child.clear();
+                for (a, &(eci, ecri)) in parent.iter().zip(self.codes[k].iter()) {
+                    if ecri >> c & 1 == 1 && eci >> c & 1 == 0 {
+                        let e = &poly.edges[a.edge as usize];
+                        let along = match e.tg {
+                            Tg::Vertical => row,
+                            Tg::Horizontal => col,
+                        };
+                        let vm = EdgeCoord((a.v1.0 + a.v2.0) >> 1);
+                        let (v1, v2) = if along == 0 { (a.v1, vm) } else { (vm, a.v2) };
+                        child.push(ActiveEdge { edge: a.edge, v1, v2 });
+                    }
+                }
+            }
+            let child_cell = Cell { level: child_level, x: cell.x * 2 + col, y: cell.y * 2 + row };
+            if child_level == self.root_level {
+                let active = std::mem::take(&mut self.scratch[child_level as usize]);
+                spp(Fragment { px: child_cell.x * 4, py: child_cell.y * 4, active: &active });
+                self.scratch[child_level as usize] = active;
+            } else {
+                self.split::<STATS>(child_cell, poly, counters, spp);
+            }
+        }
+    }
+}

@@ -1,0 +1,228 @@
+//! Video processor (VP, P1): turns a frame list into an antialiased image.
+//!
+//! ```text
+//! frame list ─► BP ─► GQ level 0 ► … ► GQ level L-1 ─► 16 SPP ─► 4 CC ─► VB ─► F2 ─► gamma
+//!               (edges)  cell processors + mask memories   subpixels  colour  accumulate
+//! ```
+//!
+//! Polygons are processed strictly in the frame list's front-to-back order; each
+//! subpixel belongs to the first polygon that covers it, the background takes what is
+//! left. **Invariants**: the image does not depend on which mask levels are in use
+//! ([`gq::MaskLevels`]) nor on whether counters are collected; the same frame list
+//! gives the same bytes every time.
+
+pub mod cc;
+pub mod edge;
+pub mod gq;
+pub mod spp;
+pub mod tables;
+pub mod vb;
+
+use glam::Vec3;
+
+use crate::frame::FrameList;
+use crate::model::stats::Counters;
+use cc::ColorComputers;
+use gq::{CellProcessors, GqPolygon, MaskLevels};
+use spp::SubpixelProcessors;
+use tables::SppMode;
+use vb::{Image, Readout, VideoBuffer};
+
+/// How the VP is configured for a frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VpConfig {
+    /// Mask memory levels in use.
+    pub masks: MaskLevels,
+    /// Which SPP table.
+    pub spp: SppMode,
+    /// Collect per-unit counters.
+    pub stats: bool,
+    /// Readout options.
+    pub readout: Readout,
+}
+
+impl Default for VpConfig {
+    fn default() -> Self {
+        Self { masks: MaskLevels::ALL, spp: SppMode::Area, stats: false, readout: Readout::default() }
+    }
+}
+
+/// One video processor with its memories, sized for a screen.
+#[derive(Clone, Debug)]
+pub struct VideoProcessor {
+    /// The configuration.
+    pub config: VpConfig,
+    /// The cell processors with their mask memories.
+    pub gq: CellProcessors,
+    /// The subpixel processors with the subpixel mask memory.
+    pub spp: SubpixelProcessors,
+    /// The video buffer.
+    pub vb: VideoBuffer,
+    /// Counters of the last frame (when `config.stats`).
+    pub counters: Counters,
+}
+
+impl VideoProcessor {
+    /// A VP for a `width` x `height` screen.
+    pub fn new(width: u32, height: u32, config: VpConfig) -> Self {
+        let gq = CellProcessors::new(width, height, config.masks);
+        let counters = Counters::new(gq.root_level);
+        Self {
+            config,
+            spp: SubpixelProcessors::new(width, height, config.spp),
+            vb: VideoBuffer::new(width, height),
+            gq,
+            counters,
+        }
+    }
+
+    /// Renders a frame list into the video buffer (which is cleared first).
+    pub fn render_frame(&mut self, frame: &FrameList) {
+        assert_eq!((frame.width, frame.height), (self.vb.width, self.vb.height), "frame list for another screen size");
+        if self.config.stats {
+            self.render_inner::<true>(frame)
+        } else {
+            self.render_inner::<false>(frame)
+        }
+    }
+
+    /// Renders and reads out an image.
+    pub fn render(&mut self, frame: &FrameList) -> Image {
+        self.render_frame(frame);
+        self.vb.read_out(&self.config.readout)
+    }
+
+    fn render_inner<const STATS: bool>(&mut self, frame: &FrameList) {
+        self.vb.clear();
+        let cc = ColorComputers::new(frame);
+        let mut colors = [Vec3::ZERO; 16];
+        let mut inner = Counters::new(self.gq.root_level);
+        let vb = &mut self.vb;
+        Self::run::<STATS>(&mut self.gq, &mut self.spp, &mut self.counters, frame, &mut |poly, vis| match poly {
+            Some(p) => {
+                let poly = &frame.polygons[p];
+                cc.shade::<STATS>(poly, vis, &mut colors, &mut inner);
+                vb.accumulate::<STATS>(vis, &colors, &mut inner);
+            }
+            None => vb.accumulate::<false>(vis, &[frame.background; 16], &mut inner),
+        });
+        if STATS {
+            self.counters.add(&inner);
+        }
+    }
+
+    /// Which polygon owns every subpixel: `u32::MAX` for the background, else the
+    /// polygon's index in the frame list. Row-major pixels, 16 subpixels each
+    /// (`4 sy + sx`). The same pipeline as [`Self::render`], with the colour units
+    /// replaced by a recorder.
+    pub fn ownership(&mut self, frame: &FrameList) -> Vec<u32> {
+        let (w, h) = (frame.width as usize, frame.height as usize);
+        let mut owner = vec![u32::MAX; w * h * 16];
+        let mut counters = Counters::new(self.gq.root_level);
+        Self::run::<false>(&mut self.gq, &mut self.spp, &mut counters, frame, &mut |poly, vis| {
+            let Some(p) = poly else { return };
+            for (i, &set) in vis.sets.iter().enumerate() {
+                let (x, y) = (vis.px as usize + (i & 3), vis.py as usize + (i >> 2));
+                for sub in 0..16 {
+                    if set >> sub & 1 == 1 {
+                        owner[(y * w + x) * 16 + sub] = p as u32;
+                    }
+                }
+            }
+        });
+        owner
+    }
+
+    /// The fragment codes of one polygon alone (no masks, no transparency): the
+    /// subpixels it covers, per 4x4 cell `(px, py, sets)`.
+    pub fn coverage(&mut self, frame: &FrameList, index: usize) -> Vec<(u32, u32, [u16; 16])> {
+        let poly = &frame.polygons[index];
+        let edges = frame.edges_of(poly);
+        let bbox = bbox(frame.vertices_of(poly), frame.width, frame.height);
+        let mut out = Vec::new();
+        if bbox[0] >= bbox[1] || bbox[2] >= bbox[3] {
+            return out;
+        }
+        let saved = self.gq.masks;
+        self.gq.masks = MaskLevels::NONE;
+        self.gq.clear();
+        let mut counters = Counters::new(self.gq.root_level);
+        let mut scratch = Counters::new(self.gq.root_level);
+        let spp = &self.spp;
+        let gp = GqPolygon { edges, opaque: false, bbox };
+        self.gq.descend::<false>(&gp, &mut counters, &mut |frag| {
+            let code = spp.fragment_code::<false>(&frag, edges, &mut scratch);
+            // Pixels off the screen are not the polygon's.
+            let mut sets = code;
+            for (i, s) in sets.iter_mut().enumerate() {
+                if frag.px + (i as u32 & 3) >= frame.width || frag.py + (i as u32 >> 2) >= frame.height {
+                    *s = 0;
+                }
+            }
+            out.push((frag.px, frag.py, sets));
+        });
+        self.gq.masks = saved;
+        out
+    }
+
+    /// The VP's pipeline over a frame: BP, GQ descent, SPP; every visible fragment
+    /// goes to `sink` with its polygon's index (`None`: the background, last).
+    fn run<const STATS: bool>(
+        gq: &mut CellProcessors,
+        spp: &mut SubpixelProcessors,
+        counters: &mut Counters,
+        frame: &FrameList,
+        sink: &mut impl FnMut(Option<usize>, &spp::Visible),
+    ) {
+        gq.clear();
+        spp.clear();
+        *counters = Counters::new(gq.root_level);
+        if STATS {
+            counters.polygons = frame.polygons.len() as u64;
+        }
+        // A second counter set for the SPP stage (the GQ holds the first).
+        let mut inner = Counters::new(gq.root_level);
+        for (index, poly) in frame.polygons.iter().enumerate() {
+            let edges = frame.edges_of(poly);
+            let bbox = bbox(frame.vertices_of(poly), frame.width, frame.height);
+            if bbox[0] >= bbox[1] || bbox[2] >= bbox[3] {
+                continue;
+            }
+            let gp = GqPolygon { edges, opaque: poly.transparency == 0, bbox };
+            gq.descend::<STATS>(&gp, counters, &mut |frag| {
+                let vis = spp.process::<STATS>(&frag, edges, poly.transparency, &mut inner);
+                if vis.sets.iter().any(|&s| s != 0) {
+                    sink(Some(index), &vis);
+                }
+            });
+        }
+        // The background: the last fragment of every pixel.
+        for cy in 0..spp.rows {
+            for cx in 0..spp.stride {
+                let vis = spp.background(cx, cy);
+                if vis.sets.iter().any(|&s| s != 0) {
+                    sink(None, &vis);
+                }
+            }
+        }
+        if STATS {
+            counters.add(&inner);
+        }
+    }
+}
+
+/// The pixel bounding box `[x0, x1) x [y0, y1)` of a polygon, inside the screen.
+fn bbox(verts: &[crate::frame::ScreenVertex], width: u32, height: u32) -> [u32; 4] {
+    let (mut x0, mut x1, mut y0, mut y1) = (f32::MAX, f32::MIN, f32::MAX, f32::MIN);
+    for v in verts {
+        x0 = x0.min(v.x);
+        x1 = x1.max(v.x);
+        y0 = y0.min(v.y);
+        y1 = y1.max(v.y);
+    }
+    // A subpixel set may reach one pixel beyond the exact box (rounding to half a
+    // subpixel), so widen by one pixel each way.
+    let lo = |v: f32, max: u32| ((v.floor() - 1.0).max(0.0) as u32).min(max);
+    let hi = |v: f32, max: u32| ((v.ceil() + 1.0).max(0.0) as u32).min(max);
+    [lo(x0, width), hi(x1, width), lo(y0, height), hi(y1, height)]
+}

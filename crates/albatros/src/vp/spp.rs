@@ -1,0 +1,295 @@
+//! Subpixel processors (SPP, P1 fig. 5): sixteen of them, one per pixel of a 4 x 4
+//! cell, each pixel split into 4 x 4 subpixels.
+//!
+//! Input: a level-L cell from the last GQ with the edges that cross it. For every
+//! pixel and edge the SPP forms the edge's V at the pixel's two borders relative to
+//! the pixel, rounds them to half a subpixel, and looks the 16-bit subpixel set up in
+//! the [`SppTable`]; the AND over edges is the fragment's code. Against the subpixel
+//! mask memory (256 bits per cell, `[u16; 16]`):
+//! `visible = fragment & thin(t) & !mask; mask |= visible; area = popcount / 16`,
+//! and the first-write flag marks pixels that had no subpixel covered before.
+//!
+//! Transparency (P2 fig. 3): a face of code `t` keeps only a dither-thinned subset of
+//! density `1 - t/64` of its subpixels ([`thinning`]), so faces behind fill the rest.
+//!
+//! Bit layout of a pixel's set: bit `4 sy + sx`, subpixel column `sx`, row `sy` from
+//! the pixel's top-left. A cell's 16 pixels are indexed `4 y + x` likewise.
+
+use super::edge::{EdgeCode, Tg, EDGE_FRAC_BITS, SNAP_ONE};
+use super::gq::Fragment;
+use super::tables::{SppMode, SppTable, SPP_V_BITS};
+use crate::model::stats::Counters;
+
+/// Pixels per cell side at the last level.
+pub const CELL_SIDE: u32 = 4;
+/// A full pixel: all 16 subpixels.
+pub const FULL: u16 = 0xFFFF;
+
+/// The visible part of a polygon in one cell, handed to the colour computers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Visible {
+    /// Left pixel of the cell.
+    pub px: u32,
+    /// Top pixel of the cell.
+    pub py: u32,
+    /// Visible subpixel set per pixel (`4 y + x`).
+    pub sets: [u16; 16],
+    /// Bit per pixel: first write (the pixel had nothing covered before).
+    pub first: u16,
+}
+
+/// The 16 SPPs and the subpixel mask memory.
+#[derive(Clone, Debug)]
+pub struct SubpixelProcessors {
+    /// Which subpixel rule.
+    pub mode: SppMode,
+    table: &'static SppTable,
+    /// Cells per row.
+    pub stride: usize,
+    /// Cell rows.
+    pub rows: usize,
+    width: u32,
+    height: u32,
+    /// Subpixel mask memory, a `[u16; 16]` (256 bits) per 4x4 cell.
+    masks: Vec<[u16; 16]>,
+    thin: Vec<[u16; 16]>,
+}
+
+/// Rounds a pixel-relative V (in [`super::edge::EdgeCoord`] units) to eighths of a
+/// pixel: `round(8 V)`, halves up.
+#[inline]
+fn round_q(v: i64) -> i32 {
+    const SHIFT: u32 = EDGE_FRAC_BITS - SPP_V_BITS;
+    ((v + (1 << (SHIFT - 1))) >> SHIFT) as i32
+}
+
+impl SubpixelProcessors {
+    /// SPPs for a screen, with the given table.
+    pub fn new(width: u32, height: u32, mode: SppMode) -> Self {
+        let stride = width.div_ceil(CELL_SIDE) as usize;
+        let rows = height.div_ceil(CELL_SIDE) as usize;
+        let mut s = Self {
+            mode,
+            table: SppTable::get(mode),
+            stride,
+            rows,
+            width,
+            height,
+            masks: vec![[0; 16]; stride * rows],
+            thin: (0..64).map(thinning).collect(),
+        };
+        s.clear();
+        s
+    }
+
+    /// Clears the mask memory for a new frame; pixels off the screen are pre-masked.
+    pub fn clear(&mut self) {
+        for cy in 0..self.rows {
+            for cx in 0..self.stride {
+                let mut m = [0u16; 16];
+                for (i, px) in m.iter_mut().enumerate() {
+                    let x = cx as u32 * CELL_SIDE + (i as u32 & 3);
+                    let y = cy as u32 * CELL_SIDE + (i as u32 >> 2);
+                    if x >= self.width || y >= self.height {
+                        *px = FULL;
+                    }
+                }
+                self.masks[cy * self.stride + cx] = m;
+            }
+        }
+    }
+
+    /// The mask memory word of the cell at `(cx, cy)`.
+    #[inline]
+    pub fn mask(&self, cx: usize, cy: usize) -> &[u16; 16] {
+        &self.masks[cy * self.stride + cx]
+    }
+
+    /// The fragment's code: per pixel, the AND over the crossing edges of their
+    /// subpixel sets (no masking).
+    pub fn fragment_code<const STATS: bool>(
+        &self,
+        frag: &Fragment,
+        edges: &[EdgeCode],
+        counters: &mut Counters,
+    ) -> [u16; 16] {
+        if self.mode == SppMode::Exact {
+            return self.fragment_code_exact::<STATS>(frag, edges, counters);
+        }
+        let mut code = [FULL; 16];
+        for a in frag.active {
+            let e = &edges[a.edge as usize];
+            // V on the five pixel lines of the cell: rows for a vertical edge,
+            // columns for a horizontal one (exact: additions of the slope).
+            let mut v = [0i64; 5];
+            for (k, vk) in v.iter_mut().enumerate() {
+                *vk = a.v1.0 + e.slope.0 * k as i64;
+            }
+            let base = match e.tg {
+                Tg::Vertical => i64::from(frag.px),
+                Tg::Horizontal => i64::from(frag.py),
+            };
+            for across in 0..4usize {
+                // Pixel column (vertical edge) or row (horizontal) at `across`.
+                let o = (base + across as i64) << EDGE_FRAC_BITS;
+                for along in 0..4usize {
+                    let q1 = round_q(v[along] - o);
+                    let q2 = round_q(v[along + 1] - o);
+                    let set = self.table.lookup(SppTable::address(e.tg, e.lr, q1, q2));
+                    let pixel = match e.tg {
+                        Tg::Vertical => along * 4 + across,
+                        Tg::Horizontal => across * 4 + along,
+                    };
+                    code[pixel] &= set;
+                }
+            }
+        }
+        if STATS {
+            counters.spp.edge_lookups += 16 * frag.active.len() as u64;
+        }
+        code
+    }
+
+    /// [`SppMode::Exact`]: the sign of each crossing edge's exact line at the 16
+    /// subpixel centres of every pixel.
+    fn fragment_code_exact<const STATS: bool>(
+        &self,
+        frag: &Fragment,
+        edges: &[EdgeCode],
+        counters: &mut Counters,
+    ) -> [u16; 16] {
+        // Subpixel centres at (2k + 1)/8 pixel, in snapped units.
+        const HALF_SUB: i64 = (SNAP_ONE / 8) as i64;
+        const SUB: i64 = (SNAP_ONE / 4) as i64;
+        let mut code = [FULL; 16];
+        for a in frag.active {
+            let e = &edges[a.edge as usize];
+            for (pixel, c) in code.iter_mut().enumerate() {
+                let x0 = (i64::from(frag.px) + (pixel & 3) as i64) * i64::from(SNAP_ONE) + HALF_SUB;
+                let y0 = (i64::from(frag.py) + (pixel >> 2) as i64) * i64::from(SNAP_ONE) + HALF_SUB;
+                let mut set = 0u16;
+                for sub in 0..16 {
+                    let greater = e.exact.greater_side(x0 + (sub & 3) as i64 * SUB, y0 + (sub >> 2) as i64 * SUB);
+                    set |= u16::from(greater == e.lr) << sub;
+                }
+                *c &= set;
+            }
+        }
+        if STATS {
+            counters.spp.edge_lookups += 16 * frag.active.len() as u64;
+        }
+        code
+    }
+
+    /// Processes one fragment of a polygon with transparency code `t`: returns the
+    /// visible subpixels and updates the mask memory.
+    pub fn process<const STATS: bool>(
+        &mut self,
+        frag: &Fragment,
+        edges: &[EdgeCode],
+        t: u8,
+        counters: &mut Counters,
+    ) -> Visible {
+        let code = self.fragment_code::<STATS>(frag, edges, counters);
+        let thin = &self.thin[usize::from(t & 63)];
+        let cell = (frag.py / CELL_SIDE) as usize * self.stride + (frag.px / CELL_SIDE) as usize;
+        let mask = &mut self.masks[cell];
+        let mut sets = [0u16; 16];
+        let mut first = 0u16;
+        for i in 0..16 {
+            let visible = code[i] & thin[i] & !mask[i];
+            if mask[i] == 0 && visible != 0 {
+                first |= 1 << i;
+            }
+            mask[i] |= visible;
+            sets[i] = visible;
+        }
+        if STATS {
+            let s = &mut counters.spp;
+            s.fragments += 1;
+            let on_screen = (self.width - frag.px).min(CELL_SIDE) * (self.height - frag.py).min(CELL_SIDE);
+            s.pixels_touched += u64::from(on_screen);
+            s.pixels_visible += sets.iter().filter(|&&v| v != 0).count() as u64;
+            s.subpixels_set += sets.iter().map(|v| u64::from(v.count_ones())).sum::<u64>();
+        }
+        Visible { px: frag.px, py: frag.py, sets, first }
+    }
+
+    /// The background's fragment in cell `(cx, cy)`: every subpixel still uncovered.
+    pub fn background(&mut self, cx: usize, cy: usize) -> Visible {
+        let mask = &mut self.masks[cy * self.stride + cx];
+        let mut sets = [0u16; 16];
+        let mut first = 0u16;
+        for i in 0..16 {
+            sets[i] = !mask[i];
+            if mask[i] == 0 {
+                first |= 1 << i;
+            }
+            mask[i] = FULL;
+        }
+        Visible { px: cx as u32 * CELL_SIDE, py: cy as u32 * CELL_SIDE, sets, first }
+    }
+}
+
+/// A 16 x 16 Bayer threshold matrix over the 256 subpixels of a cell.
+fn bayer16(x: u32, y: u32) -> u32 {
+    let mut v = 0;
+    for bit in 0..4 {
+        let xb = x >> bit & 1;
+        let yb = y >> bit & 1;
+        v |= ((xb ^ yb) << 1 | yb) << (2 * (3 - bit));
+    }
+    v
+}
+
+/// The thinning pattern for transparency code `t`: a subpixel is kept when its Bayer
+/// threshold is at least `4 t`, so exactly `256 - 4 t` of the cell's 256 subpixels
+/// (density `1 - t/64`) are kept, spread evenly.
+pub fn thinning(t: u8) -> [u16; 16] {
+    let mut out = [0u16; 16];
+    for (pixel, set) in out.iter_mut().enumerate() {
+        let (px, py) = (pixel as u32 & 3, pixel as u32 >> 2);
+        for sub in 0..16u32 {
+            let (sx, sy) = (px * 4 + (sub & 3), py * 4 + (sub >> 2));
+            if bayer16(sx, sy) >= 4 * u32::from(t) {
+                *set |= 1 << sub;
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bayer16_is_a_permutation() {
+        let mut seen = [false; 256];
+        for y in 0..16 {
+            for x in 0..16 {
+                seen[bayer16(x, y) as usize] = true;
+            }
+        }
+        assert!(seen.iter().all(|&s| s));
+    }
+
+    #[test]
+    fn thinning_has_the_code_density() {
+        for t in 0..64u8 {
+            let kept: u32 = thinning(t).iter().map(|s| s.count_ones()).sum();
+            assert_eq!(kept, 256 - 4 * u32::from(t), "t = {t}");
+        }
+        assert_eq!(thinning(0), [FULL; 16]);
+    }
+
+    #[test]
+    fn round_q_rounds_half_up() {
+        let px = |f: f64| (f * (1u64 << EDGE_FRAC_BITS) as f64) as i64;
+        assert_eq!(round_q(px(0.0)), 0);
+        assert_eq!(round_q(px(1.0 / 16.0)), 1);
+        assert_eq!(round_q(px(1.0 / 16.0) - 1), 0);
+        assert_eq!(round_q(px(-1.0 / 16.0)), 0);
+        assert_eq!(round_q(px(1.0)), 8);
+    }
+}

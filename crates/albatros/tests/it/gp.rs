@@ -1,0 +1,1 @@
+//! Tests of the geometric processor: priority order, BSP splitting.
