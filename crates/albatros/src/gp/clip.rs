@@ -131,8 +131,8 @@ impl Border {
 
     /// P2 (and P7): the point where the edge `p1 -> p2` meets this border's line, and
     /// its parameter t along the edge (0 at `p1`, 1 at `p2`). Only called for edges
-    /// whose ends are on different sides, so the denominator is not zero and t is in
-    /// (0, 1]: rounding is monotonic.
+    /// whose ends are on different sides, so the denominator is not zero, and t is in
+    /// [0, 1] (rounding is monotonic).
     fn cut(self, w: &Window, p1: DVec2, p2: DVec2) -> (f64, DVec2) {
         match self {
             Border::Left => cut_vertical(w.x0, p1, p2),
@@ -307,6 +307,11 @@ impl Flags {
     /// P4: "the initial state of the automaton is F1F2F3F4 = 0010".
     const INITIAL: Flags = Flags::F3;
 
+    /// `|`, for the `const` table.
+    const fn or(self, f: Flags) -> Flags {
+        Flags(self.0 | f.0)
+    }
+
     fn set(self, f: Flags, on: bool) -> Flags {
         if on {
             Flags(self.0 | f.0)
@@ -403,13 +408,6 @@ const TABLE_1: [Row; 16] = {
     ]
 };
 
-impl Flags {
-    /// `|` for the `const` table.
-    const fn or(self, f: Flags) -> Flags {
-        Flags(self.0 | f.0)
-    }
-}
-
 /// One stage of the pipeline: P4 fig. 2, the run of a face's vertices through one
 /// clipping half-plane, as the flag automaton of table 1.
 #[derive(Clone, Copy, Debug)]
@@ -486,11 +484,11 @@ impl HalfPlaneStage {
     }
 }
 
-/// P4's pipeline: the face stream through four [`HalfPlaneStage`]s, one per border
-/// in the order of [`Border::AROUND`], each written literally as the flag automaton
-/// of P4 table 1; each stage's output stream is the next stage's input, vertex by
-/// vertex, without intermediate buffers. Clips `poly` by `win` into `out` (cleared
-/// first); output conventions: see the module doc.
+/// P4's pipeline: the face stream through four half-plane stages (`HalfPlaneStage`
+/// in the source), one per border, in the order left, top, right, bottom, each written
+/// literally as the flag automaton of P4 table 1; each stage's output stream is the
+/// next stage's input, vertex by vertex, without intermediate buffers. Clips `poly` by
+/// `win` into `out` (cleared first); output conventions: see the module doc.
 pub fn clip_automaton(poly: &[DVec2], win: &Window, out: &mut Vec<DVec2>) {
     out.clear();
     if !win.is_proper() || poly.is_empty() {
@@ -605,12 +603,11 @@ enum Event {
 ///   keep the fixed border order);
 /// - P10: in that order, a crossing on the window side is output, after the corners
 ///   waiting in БВО (P4: "before each output of an intersection with an inner border
-///   of the window"); a crossing beyond a
-///   corner toggles that ray's N flag, and when both rays of corner k are set (the
-///   boundary has gone from one side's outer region round corner k to the other's)
-///   both flags are cleared and C_k is incremented: at 1 the corner goes into the
-///   corner buffer БВО, at 2 it is taken out again and C_k reset (the boundary went
-///   round the corner and back: no wrap);
+///   of the window"); a crossing beyond a corner toggles that ray's N flag, and when
+///   both rays of corner k are set (the boundary has gone from one side's outer
+///   region round corner k to the other's) both flags are cleared and C_k is
+///   incremented: at 1 the corner goes into the corner buffer БВО, at 2 it is taken
+///   out again and C_k reset (the boundary went round the corner and back: no wrap);
 /// - P11: the current vertex is output if it is inside.
 ///
 /// At the end the corner buffer is emptied too; P12: if nothing has been output yet
@@ -823,9 +820,14 @@ impl AllBorders {
 /// P4 fig. 3: clips `poly` by `win` into `out` (cleared first) testing each vertex
 /// against all four borders at once, ordering the border crossings along each edge,
 /// and inserting the window corners that the polygon wraps through the corner
-/// counters C_k and the corner buffer; see [`AllBorders`] for the operations P6..P12
-/// and where this departs from the paper to be exact. Output conventions: see the
-/// module doc.
+/// counters C_k and the corner buffer. Output conventions: see the module doc.
+///
+/// The operations P6..P12, why the corner logic is exact, and where it departs from
+/// the paper are documented on `AllBorders` in the source. In short: the corner
+/// buffer is emptied in the order the corners were gone round (the paper's "first in,
+/// last out" would reverse two or more corners in a row), the flags of the rays
+/// beyond a corner are toggled rather than set, and a crossing within rounding of a
+/// window side counts as on it.
 pub fn clip_all_borders(poly: &[DVec2], win: &Window, out: &mut Vec<DVec2>) {
     out.clear();
     if !win.is_proper() || poly.is_empty() {

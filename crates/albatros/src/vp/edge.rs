@@ -109,6 +109,9 @@ pub struct ExactLine {
     pub b: i64,
     /// Constant.
     pub c: i64,
+    /// The edge's two endpoints (snapped units), for the vertex pixels of
+    /// [`super::tables::SppMode::Area`].
+    pub ends: [(i32, i32); 2],
 }
 
 impl ExactLine {
@@ -181,16 +184,18 @@ impl EdgeCode {
         debug_assert_eq!(span % side, 0);
         let slope = (span / side) as i64;
         // E = dy (x - ax) - dx (y - ay), then oriented towards greater V.
-        let (mut a, mut b) = (dy, -dx);
+        let (mut ca, mut cb) = (dy, -dx);
         let flip = match tg {
-            Tg::Vertical => a < 0,
-            Tg::Horizontal => b < 0,
+            Tg::Vertical => ca < 0,
+            Tg::Horizontal => cb < 0,
         };
         if flip {
-            (a, b) = (-a, -b);
+            (ca, cb) = (-ca, -cb);
         }
-        let c = -(a * ax + b * ay);
-        Some(Self { tg, lr, origin: EdgeCoord(origin), slope: EdgeCoord(slope), exact: ExactLine { a, b, c } })
+        let cc = -(ca * ax + cb * ay);
+        let (pa, pb) = ((a.0 .0, a.1 .0), (b.0 .0, b.1 .0));
+        let ends = if pa <= pb { [pa, pb] } else { [pb, pa] };
+        Some(Self { tg, lr, origin: EdgeCoord(origin), slope: EdgeCoord(slope), exact: ExactLine { a: ca, b: cb, c: cc, ends } })
     }
 
     /// V on the integer pixel line `t` (a row `y = t` for a vertical edge, a column

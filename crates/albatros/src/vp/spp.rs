@@ -15,7 +15,7 @@
 //! Bit layout of a pixel's set: bit `4 sy + sx`, subpixel column `sx`, row `sy` from
 //! the pixel's top-left. A cell's 16 pixels are indexed `4 y + x` likewise.
 
-use super::edge::{EdgeCode, Tg, EDGE_FRAC_BITS, SNAP_ONE};
+use super::edge::{EdgeCode, ExactLine, Tg, EDGE_FRAC_BITS, SNAP_ONE};
 use super::gq::Fragment;
 use super::tables::{SppMode, SppTable, SPP_V_BITS};
 use crate::model::stats::Counters;
@@ -43,6 +43,8 @@ pub struct Visible {
 pub struct SubpixelProcessors {
     /// Which subpixel rule.
     pub mode: SppMode,
+    /// Use the exact rule in the pixels at an edge's endpoints (table modes).
+    pub vertex_exact: bool,
     table: &'static SppTable,
     /// Cells per row.
     pub stride: usize,
@@ -70,6 +72,7 @@ impl SubpixelProcessors {
         let rows = height.div_ceil(CELL_SIDE) as usize;
         let mut s = Self {
             mode,
+            vertex_exact: mode == SppMode::Area,
             table: SppTable::get(mode),
             stride,
             rows,
@@ -133,13 +136,18 @@ impl SubpixelProcessors {
                 // Pixel column (vertical edge) or row (horizontal) at `across`.
                 let o = (base + across as i64) << EDGE_FRAC_BITS;
                 for along in 0..4usize {
-                    let q1 = round_q(v[along] - o);
-                    let q2 = round_q(v[along + 1] - o);
-                    let set = self.table.lookup(SppTable::address(e.tg, e.lr, q1, q2));
                     let pixel = match e.tg {
                         Tg::Vertical => along * 4 + across,
                         Tg::Horizontal => across * 4 + along,
                     };
+                    let (x, y) = (frag.px + (pixel as u32 & 3), frag.py + (pixel as u32 >> 2));
+                    if self.vertex_exact && near_end(&e.exact, x, y) {
+                        code[pixel] &= exact_set(&e.exact, e.lr, x, y);
+                        continue;
+                    }
+                    let q1 = round_q(v[along] - o);
+                    let q2 = round_q(v[along + 1] - o);
+                    let set = self.table.lookup(SppTable::address(e.tg, e.lr, q1, q2));
                     code[pixel] &= set;
                 }
             }
@@ -158,21 +166,11 @@ impl SubpixelProcessors {
         edges: &[EdgeCode],
         counters: &mut Counters,
     ) -> [u16; 16] {
-        // Subpixel centres at (2k + 1)/8 pixel, in snapped units.
-        const HALF_SUB: i64 = (SNAP_ONE / 8) as i64;
-        const SUB: i64 = (SNAP_ONE / 4) as i64;
         let mut code = [FULL; 16];
         for a in frag.active {
             let e = &edges[a.edge as usize];
             for (pixel, c) in code.iter_mut().enumerate() {
-                let x0 = (i64::from(frag.px) + (pixel & 3) as i64) * i64::from(SNAP_ONE) + HALF_SUB;
-                let y0 = (i64::from(frag.py) + (pixel >> 2) as i64) * i64::from(SNAP_ONE) + HALF_SUB;
-                let mut set = 0u16;
-                for sub in 0..16 {
-                    let greater = e.exact.greater_side(x0 + (sub & 3) as i64 * SUB, y0 + (sub >> 2) as i64 * SUB);
-                    set |= u16::from(greater == e.lr) << sub;
-                }
-                *c &= set;
+                *c &= exact_set(&e.exact, e.lr, frag.px + (pixel as u32 & 3), frag.py + (pixel as u32 >> 2));
             }
         }
         if STATS {
@@ -229,6 +227,36 @@ impl SubpixelProcessors {
         }
         Visible { px: cx as u32 * CELL_SIDE, py: cy as u32 * CELL_SIDE, sets, first }
     }
+}
+
+/// How far (snapped units) beyond a pixel an edge's endpoint may lie for the pixel
+/// to count as a vertex pixel of that edge: half a pixel.
+const VERTEX_MARGIN: i32 = SNAP_ONE / 2;
+
+/// Whether one of the edge's endpoints lies in pixel `(x, y)` or within
+/// [`VERTEX_MARGIN`] of it.
+#[inline]
+fn near_end(line: &ExactLine, x: u32, y: u32) -> bool {
+    let (x0, y0) = (x as i32 * SNAP_ONE - VERTEX_MARGIN, y as i32 * SNAP_ONE - VERTEX_MARGIN);
+    let (x1, y1) = ((x as i32 + 1) * SNAP_ONE + VERTEX_MARGIN, (y as i32 + 1) * SNAP_ONE + VERTEX_MARGIN);
+    line.ends.iter().any(|&(ex, ey)| ex >= x0 && ex <= x1 && ey >= y0 && ey <= y1)
+}
+
+/// The subpixels of pixel `(x, y)` on the polygon's side of an exact line: the
+/// sign of the line's edge function at the 16 subpixel centres.
+#[inline]
+fn exact_set(line: &ExactLine, lr: bool, x: u32, y: u32) -> u16 {
+    // Subpixel centres at (2k + 1)/8 pixel, in snapped units.
+    const HALF_SUB: i64 = (SNAP_ONE / 8) as i64;
+    const SUB: i64 = (SNAP_ONE / 4) as i64;
+    let x0 = i64::from(x) * i64::from(SNAP_ONE) + HALF_SUB;
+    let y0 = i64::from(y) * i64::from(SNAP_ONE) + HALF_SUB;
+    let mut set = 0u16;
+    for sub in 0..16 {
+        let greater = line.greater_side(x0 + (sub & 3) as i64 * SUB, y0 + (sub >> 2) as i64 * SUB);
+        set |= u16::from(greater == lr) << sub;
+    }
+    set
 }
 
 /// A 16 x 16 Bayer threshold matrix over the 256 subpixels of a cell.
