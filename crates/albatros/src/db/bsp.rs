@@ -32,6 +32,9 @@ use glam::{DVec3, Vec3};
 pub const NONE: u32 = u32::MAX;
 /// Faces at or below which a node always uses a face plane.
 const AUTO_PARTITION_AT: usize = 12;
+/// Nodes with more faces than this try face planes only when no free plane makes
+/// progress.
+const FACE_PLANES_BELOW: usize = 64;
 /// Faces sampled when estimating a plane's cost on a large node.
 const COST_SAMPLE: usize = 1024;
 /// Distance from a plane, relative to the scene's extent, within which a point counts
@@ -291,6 +294,13 @@ impl Bsp {
                         consider(cost, plane, None, &mut best);
                     }
                 }
+            }
+        }
+        // On a large node a free plane is taken when there is one: face planes are
+        // for the small nodes (and for when no free plane makes progress).
+        if let Some((_, plane, None)) = best {
+            if list.len() > FACE_PLANES_BELOW {
+                return (plane, None);
             }
         }
         // Face planes of a few spread-out faces.

@@ -20,20 +20,23 @@
 //!   winding. The polygon must be convex (faces are, SYSTEM.md 2): for a non-convex
 //!   polygon the output is unspecified, but nothing panics.
 //! - **Inside is inclusive**: a point on a border is inside (P4: F2 = 0 iff X2 < Xmin).
-//! - **Output**: the clipped polygon, convex, with the **same winding as the input**
-//!   (none of the clippers looks at the orientation: Sutherland-Hodgman and the
-//!   automaton keep the input order by construction, and the all-borders clipper
+//! - **Output**: the clipped polygon, strictly convex, with the **same winding as the
+//!   input** (none of the clippers looks at the orientation: Sutherland-Hodgman and
+//!   the automaton keep the input order by construction, and the all-borders clipper
 //!   inserts window corners in the order the polygon's boundary goes round them). No
-//!   two consecutive points (cyclically) are equal: points closer than the tolerance
-//!   below are merged. Empty if fewer than three points remain or the area is zero.
-//!   An improper window (not `x0 < x1 && y0 < y1`, or NaN) clips everything away.
+//!   vertex lies within the tolerance below of the line through its neighbours: so no
+//!   two consecutive points (cyclically) are equal, and collinear input vertices are
+//!   dropped (harmless: the clipper carries positions only; the setup interpolates
+//!   from plane equations). Empty if fewer than three points remain or the area is
+//!   zero. An improper window (not `x0 < x1 && y0 < y1`, or NaN) clips everything
+//!   away.
 //! - **Tolerance**: rounding in the intersection formulas is of the order of an ulp of
 //!   the largest coordinate involved, so the clean-up works relative to
-//!   `scale = max |coordinate|` over the input polygon and the window: points closer
-//!   than `REL_EPS * scale` are one point, and a polygon whose area is at most
-//!   `REL_EPS * scale * perimeter` (narrower than about `2 * REL_EPS * scale`
-//!   everywhere) has zero area. With pixel coordinates up to 10^4 that is 10^-8 pixel:
-//!   nothing that could cover a sample is dropped.
+//!   `scale = max |coordinate|` over the input polygon and the window: a vertex within
+//!   `REL_EPS * scale` of the line through its neighbours goes, and a polygon whose
+//!   area is at most `REL_EPS * scale * perimeter` (narrower than about
+//!   `2 * REL_EPS * scale` everywhere) has zero area. With pixel coordinates up to
+//!   10^4 that is 10^-8 pixel: nothing that could cover a sample is dropped.
 //!
 //! # The face stream
 //!
@@ -99,17 +102,14 @@ enum Border {
     Bottom,
 }
 
-/// Where a point of a border's line lies relative to that side of the window
-/// (P7's coding "inside", "above", "below").
+/// Which end of a window side a crossing of the side's line outside the window lies
+/// beyond (P7's coding "above", "below"; the paper's flags N_i1, N_i2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Place {
-    /// On the window side itself (the paper's IP_i: an intersection with an inner
-    /// border).
-    Inner,
-    /// Beyond the side's first end, corner `i - 1` (the paper's N_i1).
-    BeyondFirst,
-    /// Beyond the side's second end, corner `i` (the paper's N_i2).
-    BeyondSecond,
+enum End {
+    /// Beyond the side's first end, corner `i - 1` (N_i1).
+    First,
+    /// Beyond the side's second end, corner `i` (N_i2).
+    Second,
 }
 
 impl Border {
@@ -148,27 +148,37 @@ impl Border {
         }
     }
 
-    /// P7: where a point `p` of this border's line lies relative to the window side.
-    /// A point within `eps` of the side counts as on it, and is moved onto it (see
-    /// "Rounding" at [`AllBorders`]); returns the place and the point.
-    fn place(self, w: &Window, p: DVec2, eps: f64) -> (Place, DVec2) {
-        // The coordinate along the line, and the side's first and second end in the
-        // order around the window.
-        let vertical = matches!(self, Border::Left | Border::Right);
-        let (s, lo, hi) = if vertical { (p.y, w.y0, w.y1) } else { (p.x, w.x0, w.x1) };
-        let first_is_lo = matches!(self, Border::Top | Border::Right);
-        let (below_lo, above_hi) = if first_is_lo {
-            (Place::BeyondFirst, Place::BeyondSecond)
+    /// The coordinate of a point of this border's line along the line, and the side's
+    /// range of it: (s, lo, hi), and whether lo is the side's first end.
+    fn along(self, w: &Window, p: DVec2) -> (f64, f64, f64, bool) {
+        match self {
+            Border::Left => (p.y, w.y0, w.y1, false),
+            Border::Top => (p.x, w.x0, w.x1, true),
+            Border::Right => (p.y, w.y0, w.y1, true),
+            Border::Bottom => (p.x, w.x0, w.x1, false),
+        }
+    }
+
+    /// P7 for a crossing on the window side (IP_i): the point, held to the side (a
+    /// rounded crossing may land a hair beyond its end).
+    fn onto_side(self, w: &Window, p: DVec2) -> DVec2 {
+        let (s, lo, hi, _) = self.along(w, p);
+        let s = s.clamp(lo, hi);
+        match self {
+            Border::Left | Border::Right => DVec2::new(p.x, s),
+            Border::Top | Border::Bottom => DVec2::new(s, p.y),
+        }
+    }
+
+    /// P7 for a crossing outside the window (N_i1 or N_i2): which end of the side it
+    /// lies beyond; the nearer end if rounding has put it on the side.
+    fn beyond(self, w: &Window, p: DVec2) -> End {
+        let (s, lo, hi, first_is_lo) = self.along(w, p);
+        let below_lo = s - lo < hi - s;
+        if below_lo == first_is_lo {
+            End::First
         } else {
-            (Place::BeyondSecond, Place::BeyondFirst)
-        };
-        if s < lo - eps {
-            (below_lo, p)
-        } else if s > hi + eps {
-            (above_hi, p)
-        } else {
-            let s = s.clamp(lo, hi);
-            (Place::Inner, if vertical { DVec2::new(p.x, s) } else { DVec2::new(s, p.y) })
+            End::Second
         }
     }
 }
@@ -192,23 +202,30 @@ fn scale(poly: &[DVec2], win: &Window) -> f64 {
     poly.iter().fold(w, |m, p| m.max(p.abs().max_element()))
 }
 
-/// Brings a raw clipper output to the conventions of the module doc: merges
-/// consecutive points (cyclically) closer than the tolerance, and empties a polygon of
-/// fewer than three points or of zero area.
+/// Brings a raw clipper output to the conventions of the module doc: drops every
+/// vertex that lies within the tolerance of the line through its two neighbours
+/// (repeated points, collinear points, and the hair-thin notches and spikes that
+/// rounding can leave), until none does; then empties a polygon of fewer than three
+/// points or of zero area.
 fn finish(poly: &[DVec2], win: &Window, out: &mut Vec<DVec2>) {
     let tol = REL_EPS * scale(poly, win);
-    let near = |a: DVec2, b: DVec2| (a - b).abs().max_element() <= tol;
-    let mut n = 0;
-    for i in 0..out.len() {
-        let p = out[i];
-        if n == 0 || !near(out[n - 1], p) {
-            out[n] = p;
-            n += 1;
+    // At most one pass per vertex removed, and faces have a handful of vertices.
+    let mut i = 0;
+    let mut kept = 0;
+    while out.len() >= 3 && kept < out.len() {
+        let n = out.len();
+        let (a, v, b) = (out[(i + n - 1) % n], out[i % n], out[(i + 1) % n]);
+        let d = b - a;
+        let len = d.length();
+        // Distance of v from the line a b, times len; a and b one point: v goes.
+        if len <= tol || d.perp_dot(v - a).abs() <= tol * len {
+            out.remove(i % n);
+            kept = 0;
+        } else {
+            i += 1;
+            kept += 1;
         }
-    }
-    out.truncate(n);
-    while out.len() > 1 && near(out[out.len() - 1], out[0]) {
-        out.pop();
+        i %= out.len().max(1);
     }
     if out.len() < 3 {
         out.clear();
@@ -596,7 +613,9 @@ enum Event {
 /// - P6: the outcodes of both ends, all four borders at once ([`outcode`]);
 /// - P7: for each border whose bit differs, in the fixed order, the crossing of the
 ///   edge with the border line and its place: on the window side (IP_i) or beyond
-///   one of the side's ends (N_i1, N_i2);
+///   one of the side's ends (N_i1, N_i2). Which crossings are on the window sides is
+///   decided by their order along the edge rather than by their rounded positions
+///   (see "Rounding");
 /// - P8, P9: the crossings ordered along the edge. P8 asks for the distance S of each
 ///   crossing; its parameter t along the edge is proportional to that distance and
 ///   needs no square root, so the crossings are ordered by t (stably, so that equal t
@@ -648,8 +667,7 @@ enum Event {
 /// - Emptying the buffer before each intersection with an inner border, as P4 does,
 ///   is enough: the boundary always comes back into the window through such an
 ///   intersection (also when it enters through a vertex on a border: the crossing is
-///   then at t = 1), so a corner never waits past an inside vertex. Under rounding
-///   this holds thanks to the tolerance of P7 (below).
+///   then at t = 1), so a corner never waits past an inside vertex.
 /// - The start of the vertex list needs no care, although it may cut the excursion
 ///   that goes round a corner: the flags pair the corner's two crossings whatever
 ///   comes between them. A corner completed before the first output is output first,
@@ -660,23 +678,26 @@ enum Event {
 ///
 /// # Rounding
 ///
-/// An edge through a corner crosses both its border lines at the corner: in exact
-/// arithmetic both crossings are on the window sides and output the corner. Rounded,
-/// either may land just beyond the corner, and the two crossings' t, equal in exact
-/// arithmetic, may come out in either order; the tests found a face whose
-/// bottom-left corner was lost so: both crossings beyond, in the wrong order, so the
-/// flags never paired. Hence P7 takes a crossing within `REL_EPS` (relative to the
-/// largest coordinate of the edge and the window) of a window side as on the side,
-/// moved onto it: an edge through a corner outputs the corner, and a ray is crossed
-/// only clearly beyond a corner, where the order along the edge is certain. Taking or
-/// leaving a corner within that distance of the boundary changes the polygon by no
-/// more than the tolerance of the output clean-up. It also keeps the re-entry into
-/// the window an intersection on a window side, which the corner buffer waits for.
+/// In exact arithmetic a crossing is on a window side iff it is where the edge enters
+/// or leaves the window: the last crossing into a half-plane (t_in) or the first
+/// crossing out of one (t_out), when t_in <= t_out (the Liang-Barsky rule). P7 decides
+/// it so, not by comparing the rounded crossing with the side's ends, because near a
+/// corner the two disagree: an edge from a corner region into the window crosses both
+/// lines of the corner, exactly one of them on a side; rounded, both may land on the
+/// sides, or both beyond, and for an edge nearly parallel to a border the crossing
+/// with that border is uncertain along it by far more than a rounding error (slope
+/// 10^-5: 10^5 times more). The tests found both: a bottom-left corner lost (both
+/// crossings beyond, in the wrong order along the edge, so the flags never paired) and
+/// a spurious second entry point 10^-10 from the first, making a notch. With the
+/// order rule every entry and exit gives exactly one point on a side, every return
+/// into the window starts with one (which the corner buffer waits for), and a crossing
+/// that rounding puts on a side but that is not the entry or exit counts as beyond
+/// the nearer end. A ray then read for the other ray of the same corner changes only
+/// that corner's count, next to its entry or exit point, where taking or leaving the
+/// corner moves the polygon by a rounding error.
 #[derive(Clone, Copy, Debug)]
 struct AllBorders {
     win: Window,
-    /// The largest coordinate magnitude of the window, for the tolerance of P7.
-    win_scale: f64,
     /// A vertex has arrived (cleared again after the last one).
     started: bool,
     /// The previous vertex and its P6 outcode.
@@ -696,7 +717,6 @@ impl AllBorders {
     fn new(win: Window) -> Self {
         AllBorders {
             win,
-            win_scale: scale(&[], &win),
             started: false,
             prev: DVec2::ZERO,
             prev_code: 0,
@@ -733,23 +753,33 @@ impl AllBorders {
         if crossed == 0 {
             return;
         }
-        // P7: the crossings, in the fixed border order. The tolerance is relative to
-        // the largest coordinate in the formula, which sets its rounding.
-        let eps = REL_EPS * self.win_scale.max(self.prev.abs().max_element()).max(cur.abs().max_element());
-        let mut events = [(0.0, Event::Outer(0)); 4];
+        // P7: the crossings, in the fixed border order.
+        let mut cuts = [(0.0, DVec2::ZERO, Border::Left, 0u8); 4];
         let mut n = 0;
         for (i, border) in Border::AROUND.into_iter().enumerate() {
-            if crossed & (1 << i) != 0 {
+            let bit = 1 << i;
+            if crossed & bit != 0 {
                 let (t, p) = border.cut(&self.win, self.prev, cur);
-                let ray = 2 * i as u8;
-                let (place, p) = border.place(&self.win, p, eps);
-                events[n] = match place {
-                    Place::Inner => (t, Event::Inner(p)),
-                    Place::BeyondFirst => (t, Event::Outer(ray)),
-                    Place::BeyondSecond => (t, Event::Outer(ray + 1)),
-                };
+                cuts[n] = (t, p, border, bit);
                 n += 1;
             }
+        }
+        // Which crossings are on the window sides: the edge is in the window from the
+        // last crossing into a half-plane to the first crossing out of one (t_in,
+        // t_out), if those come in that order and no border has both ends outside.
+        let entering = |bit: u8| self.prev_code & bit != 0;
+        let t_in = cuts[..n].iter().filter(|c| entering(c.3)).fold(0.0, |m, c| c.0.max(m));
+        let t_out = cuts[..n].iter().filter(|c| !entering(c.3)).fold(1.0, |m, c| c.0.min(m));
+        let meets = self.prev_code & code == 0 && t_in <= t_out;
+        let mut events = [(0.0, Event::Outer(0)); 4];
+        for (event, &(t, p, border, bit)) in events.iter_mut().zip(&cuts[..n]) {
+            let on_side = meets && t == if entering(bit) { t_in } else { t_out };
+            *event = if on_side {
+                (t, Event::Inner(border.onto_side(&self.win, p)))
+            } else {
+                let i = bit.trailing_zeros() as u8;
+                (t, Event::Outer(2 * i + u8::from(border.beyond(&self.win, p) == End::Second)))
+            };
         }
         // P8, P9: along the edge (a stable insertion sort of at most four).
         for i in 1..n {
@@ -826,8 +856,8 @@ impl AllBorders {
 /// the paper are documented on `AllBorders` in the source. In short: the corner
 /// buffer is emptied in the order the corners were gone round (the paper's "first in,
 /// last out" would reverse two or more corners in a row), the flags of the rays
-/// beyond a corner are toggled rather than set, and a crossing within rounding of a
-/// window side counts as on it.
+/// beyond a corner are toggled rather than set, and which crossings are on the
+/// window sides is decided by their order along the edge, robust to rounding.
 pub fn clip_all_borders(poly: &[DVec2], win: &Window, out: &mut Vec<DVec2>) {
     out.clear();
     if !win.is_proper() || poly.is_empty() {
