@@ -14,7 +14,7 @@ use albatros::db::{builtin, load, Scene, Screen};
 use albatros::gp::{self, Clipper, Database, GpConfig, GpCounters};
 use albatros::vp::gq::{CellProcessors, MaskLevels};
 use albatros::vp::tables::{GqRom, SppMode, SppTable};
-use albatros::vp::vb::Readout;
+use albatros::vp::vb::{Readout, VbMode};
 use albatros::vp::{VideoProcessor, VpConfig};
 
 /// The Albatros image generator: a software model of the 1990s «Альбатрос» visual
@@ -34,6 +34,8 @@ enum Command {
     Dump(DumpArgs),
     /// Print counts: models, faces, BSP, and what the GP does with them.
     Info(SceneArgs),
+    /// Time frames: median and spread after warm-up, frames/s, and each stage's time.
+    Bench(BenchArgs),
     /// Write the VP's ROM tables (GQ CI/CRI table, SPP tables) as $readmemh hex files.
     Tables {
         /// Output directory.
@@ -72,9 +74,34 @@ struct RenderArgs {
     /// Display gamma (1 gives linear output).
     #[arg(long, default_value_t = 2.2)]
     gamma: f32,
+    /// Video buffer: log (P1's logarithm codes, 8 bits; logN for N bits), float
+    /// (the reference), linear or linearN (fixed-point codes, for comparison).
+    #[arg(long, default_value = "log", value_parser = parse_vb)]
+    vb: VbMode,
     /// Subpixel rule: area-faithful table (P1), point-sample table, or exact edge lines.
     #[arg(long, value_enum, default_value_t = SppArg::Area)]
     spp: SppArg,
+}
+
+#[derive(clap::Args)]
+struct BenchArgs {
+    /// Built-in scenes or scene files (default: all built-in scenes).
+    scenes: Vec<String>,
+    /// Screen size WxH (overrides the scenes').
+    #[arg(long, value_parser = parse_size)]
+    size: Option<Screen>,
+    /// Worker threads (video processors of the matrix).
+    #[arg(long, default_value_t = 1)]
+    threads: usize,
+    /// Frames timed after the warm-up.
+    #[arg(long, default_value_t = 10)]
+    frames: usize,
+    /// Frames run before timing.
+    #[arg(long, default_value_t = 2)]
+    warmup: usize,
+    /// JSON lines instead of a table.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(clap::Args)]
@@ -111,6 +138,10 @@ fn parse_size(s: &str) -> Result<Screen, String> {
         return Err(format!("size {w}x{h} is out of range: each side must be 1..={}", Screen::MAX_SIDE));
     }
     Ok(Screen { width: w, height: h })
+}
+
+fn parse_vb(s: &str) -> Result<VbMode, String> {
+    s.parse::<VbMode>().map_err(|e| e.to_string())
 }
 
 fn parse_masks(s: &str, root_level: u32) -> Result<MaskLevels> {
@@ -176,6 +207,7 @@ fn main() -> Result<()> {
         Command::Render(args) => render(args),
         Command::Dump(args) => dump(args),
         Command::Info(args) => info(args),
+        Command::Bench(args) => bench(args),
         Command::Tables { out } => tables(&out),
     }
 }
@@ -199,6 +231,7 @@ fn render(args: RenderArgs) -> Result<()> {
         },
         stats: false,
         readout: Readout { filter: !args.no_filter, gamma: args.gamma },
+        vb: args.vb,
     };
     let mut vp = VideoProcessor::new(screen.width, screen.height, config);
     let image = vp.render(&frame);
@@ -261,6 +294,81 @@ fn info(args: SceneArgs) -> Result<()> {
         c.near_clipped, c.window_clipped, c.degenerate, c.lights
     );
     println!("frame list   {} polygons", frame.polygons.len());
+    Ok(())
+}
+
+/// Median, minimum and maximum of a sample, in milliseconds.
+fn spread(mut v: Vec<f64>) -> (f64, f64, f64) {
+    v.sort_by(f64::total_cmp);
+    let median = if v.len() % 2 == 1 { v[v.len() / 2] } else { (v[v.len() / 2 - 1] + v[v.len() / 2]) * 0.5 };
+    (median, v[0], v[v.len() - 1])
+}
+
+fn bench(args: BenchArgs) -> Result<()> {
+    if args.frames == 0 {
+        bail!("--frames must be at least 1");
+    }
+    if args.threads != 1 {
+        bail!("--threads {}: only 1 is implemented so far", args.threads);
+    }
+    let names: Vec<String> = if args.scenes.is_empty() { builtin::NAMES.iter().map(|s| s.to_string()).collect() } else { args.scenes.clone() };
+    if !args.json {
+        println!("{:<10} {:>10} {:>7} {:>9} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9}", "scene", "size", "frames", "median", "min", "max", "fps", "gp", "raster", "color+vb", );
+    }
+    for name in names {
+        let scene_args = SceneArgs { scene: name.clone(), size: args.size, clipper: ClipperArg::Automaton };
+        let scene = load_scene(&scene_args)?;
+        let screen = scene.screen;
+        let db = Database::new(scene);
+        let mut vp = VideoProcessor::new(screen.width, screen.height, VpConfig::default());
+        let (mut total, mut gp_t, mut raster_t, mut color_t, mut readout_t) = (vec![], vec![], vec![], vec![], vec![]);
+        let mut counters = GpCounters::default();
+        for f in 0..args.warmup + args.frames {
+            let t0 = std::time::Instant::now();
+            let frame = gp::frame(&db, &db.scene.eye, screen, &GpConfig::default(), &mut counters);
+            let t1 = std::time::Instant::now();
+            vp.raster(&frame);
+            let t2 = std::time::Instant::now();
+            vp.render_frame(&frame);
+            let t3 = std::time::Instant::now();
+            let image = vp.vb.read_out(&vp.config.readout);
+            let t4 = std::time::Instant::now();
+            std::hint::black_box(image);
+            if f >= args.warmup {
+                let ms = |a: std::time::Instant, b: std::time::Instant| (b - a).as_secs_f64() * 1e3;
+                gp_t.push(ms(t0, t1));
+                raster_t.push(ms(t1, t2));
+                color_t.push((ms(t2, t3) - ms(t1, t2)).max(0.0));
+                readout_t.push(ms(t3, t4));
+                total.push(ms(t0, t1) + ms(t2, t3) + ms(t3, t4));
+            }
+        }
+        let (median, min, max) = spread(total);
+        let (gp_m, raster_m, color_m, readout_m) = (spread(gp_t).0, spread(raster_t).0, spread(color_t).0, spread(readout_t).0);
+        if args.json {
+            let v = serde_json::json!({
+                "scene": name, "width": screen.width, "height": screen.height, "threads": args.threads,
+                "frames": args.frames, "median_ms": median, "min_ms": min, "max_ms": max, "fps": 1e3 / median,
+                "stages": { "gp_ms": gp_m, "raster_ms": raster_m, "color_vb_ms": color_m, "readout_ms": readout_m },
+            });
+            println!("{v}");
+        } else {
+            println!(
+                "{:<10} {:>10} {:>7} {:>7.2}ms {:>7.2}ms {:>7.2}ms {:>8.1} {:>7.2}ms {:>7.2}ms {:>7.2}ms   readout {:.2}ms",
+                name,
+                format!("{}x{}", screen.width, screen.height),
+                args.frames,
+                median,
+                min,
+                max,
+                1e3 / median,
+                gp_m,
+                raster_m,
+                color_m,
+                readout_m
+            );
+        }
+    }
     Ok(())
 }
 

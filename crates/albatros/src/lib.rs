@@ -14,4 +14,5 @@ pub mod db;
 pub mod frame;
 pub mod gp;
 pub mod model;
+pub mod peer;
 pub mod vp;

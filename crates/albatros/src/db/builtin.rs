@@ -801,9 +801,12 @@ fn city() -> Scene {
             s.place(model, Mat4::from_translation(Vec3::new(x, y, 0.0)) * Mat4::from_scale(Vec3::new(w, d, h)));
         }
     }
-    // In the street intersection just south-west of the first lot.
-    const STREET: f32 = -6.0;
-    s.eye = Eye { position: Vec3::new(STREET, STREET, 25.0), heading: 45.0, pitch: -3.0, roll: 0.0, fov: 60.0 };
+    // Above the south-west corner, looking along the diagonal over the roofs: the
+    // rows of buildings hide one another far into the distance (deep depth
+    // complexity).
+    const EYE_BACK: f32 = -40.0;
+    const EYE_HEIGHT: f32 = 110.0;
+    s.eye = Eye { position: Vec3::new(EYE_BACK, EYE_BACK, EYE_HEIGHT), heading: 45.0, pitch: -14.0, roll: 0.0, fov: 60.0 };
     s.screen = Screen { width: 1024, height: 768 };
     s.env.visibility = 4000.0;
     s

@@ -37,10 +37,8 @@ use super::{
     SceneError, Screen, Shading, TextureDef, TextureSource, Transparency, Vertex,
 };
 
-/// The names a `[[texture]]` may give as `builtin`.
-// TODO: take this list from the colour-computation unit's texture module once it
-// exists; these are the four maps `TextureSource::Builtin` documents.
-pub const BUILTIN_TEXTURES: &[&str] = &["grass", "asphalt", "concrete", "checker"];
+/// The names a `[[texture]]` may give as `builtin`: the texture unit's procedural maps.
+pub const BUILTIN_TEXTURES: &[&str] = crate::vp::texture::BUILTIN_NAMES;
 
 /// The largest product of a canonical part's integer (resolution) parameters. The
 /// face count of every canonical shape is at most a small multiple of that product;

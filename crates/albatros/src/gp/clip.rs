@@ -596,6 +596,19 @@ impl CornerBuffer {
     }
 }
 
+/// A crossing of an edge with a border line (P7).
+#[derive(Clone, Copy, Debug)]
+struct Cut {
+    /// Parameter along the edge, 0 at its start, 1 at its end.
+    t: f64,
+    /// The crossing point.
+    p: DVec2,
+    /// Index of the border in [`Border::AROUND`].
+    border: usize,
+    /// The edge starts outside this border and ends inside it.
+    entering: bool,
+}
+
 /// An event on an edge, found by P7 and ordered by P8/P9.
 #[derive(Clone, Copy, Debug)]
 enum Event {
@@ -754,31 +767,32 @@ impl AllBorders {
             return;
         }
         // P7: the crossings, in the fixed border order.
-        let mut cuts = [(0.0, DVec2::ZERO, Border::Left, 0u8); 4];
+        let mut cuts = [Cut { t: 0.0, p: DVec2::ZERO, border: 0, entering: false }; 4];
         let mut n = 0;
         for (i, border) in Border::AROUND.into_iter().enumerate() {
-            let bit = 1 << i;
-            if crossed & bit != 0 {
+            if crossed & (1 << i) != 0 {
                 let (t, p) = border.cut(&self.win, self.prev, cur);
-                cuts[n] = (t, p, border, bit);
+                let entering = self.prev_code & (1 << i) != 0;
+                cuts[n] = Cut { t, p, border: i, entering };
                 n += 1;
             }
         }
         // Which crossings are on the window sides: the edge is in the window from the
         // last crossing into a half-plane to the first crossing out of one (t_in,
         // t_out), if those come in that order and no border has both ends outside.
-        let entering = |bit: u8| self.prev_code & bit != 0;
-        let t_in = cuts[..n].iter().filter(|c| entering(c.3)).fold(0.0, |m, c| c.0.max(m));
-        let t_out = cuts[..n].iter().filter(|c| !entering(c.3)).fold(1.0, |m, c| c.0.min(m));
+        let cuts = &cuts[..n];
+        let t_in = cuts.iter().filter(|c| c.entering).fold(0.0, |m, c| c.t.max(m));
+        let t_out = cuts.iter().filter(|c| !c.entering).fold(1.0, |m, c| c.t.min(m));
         let meets = self.prev_code & code == 0 && t_in <= t_out;
         let mut events = [(0.0, Event::Outer(0)); 4];
-        for (event, &(t, p, border, bit)) in events.iter_mut().zip(&cuts[..n]) {
-            let on_side = meets && t == if entering(bit) { t_in } else { t_out };
+        for (event, c) in events.iter_mut().zip(cuts) {
+            let border = Border::AROUND[c.border];
+            let on_side = meets && c.t == if c.entering { t_in } else { t_out };
             *event = if on_side {
-                (t, Event::Inner(border.onto_side(&self.win, p)))
+                (c.t, Event::Inner(border.onto_side(&self.win, c.p)))
             } else {
-                let i = bit.trailing_zeros() as u8;
-                (t, Event::Outer(2 * i + u8::from(border.beyond(&self.win, p) == End::Second)))
+                let end = border.beyond(&self.win, c.p);
+                (c.t, Event::Outer(2 * c.border as u8 + u8::from(end == End::Second)))
             };
         }
         // P8, P9: along the edge (a stable insertion sort of at most four).

@@ -116,6 +116,38 @@ impl MaskMemory {
     }
 }
 
+/// The share of the screen one VP of a `p x q` matrix renders (P3): the square tiles
+/// of `tile` pixels (a power of two) at tile column `tx` and row `ty` with
+/// `tx % p == i` and `ty % q == j`. `tile = 1` is P3's interleave by single pixels
+/// (every VP works on the whole screen, on a sparse raster); `tile = 4 * 2^m` is an
+/// interleave by whole cells of level `L - m`. Everything outside the share is
+/// pre-masked, like the area off the screen, so a VP never spends a cell or a
+/// subpixel on it below the tile's level.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Share {
+    /// Tile side in pixels (a power of two).
+    pub tile: u32,
+    /// Matrix columns.
+    pub p: u32,
+    /// Matrix rows.
+    pub q: u32,
+    /// This VP's column.
+    pub i: u32,
+    /// This VP's row.
+    pub j: u32,
+}
+
+impl Share {
+    /// The whole screen (a 1 x 1 matrix).
+    pub const WHOLE: Share = Share { tile: 4, p: 1, q: 1, i: 0, j: 0 };
+
+    /// Whether pixel `(x, y)` is this VP's.
+    #[inline]
+    pub fn owns_pixel(&self, x: u32, y: u32) -> bool {
+        (x / self.tile) % self.p == self.i && (y / self.tile) % self.q == self.j
+    }
+}
+
 /// A cell: level and position (cell indices at that level).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Cell {
@@ -138,6 +170,8 @@ pub struct CellProcessors {
     pub height: u32,
     /// Levels whose mask memory is in use.
     pub masks: MaskLevels,
+    /// The part of the screen this VP renders.
+    pub share: Share,
     memories: Vec<MaskMemory>,
     scratch: Vec<Vec<ActiveEdge>>,
     codes: Vec<Vec<(u8, u8)>>,
@@ -188,6 +222,7 @@ impl CellProcessors {
             width,
             height,
             masks,
+            share: Share::WHOLE,
             memories,
             scratch: vec![Vec::new(); root_level as usize + 1],
             codes: vec![Vec::new(); root_level as usize + 1],
@@ -198,6 +233,19 @@ impl CellProcessors {
     pub fn clear(&mut self) {
         for m in &mut self.memories {
             m.clear();
+        }
+        // Pre-mask the cells of other VPs at the share's tile level.
+        let share = self.share;
+        if share.p * share.q > 1 && share.tile >= 4 && share.tile <= self.side(0) {
+            let level = self.root_level + 2 - share.tile.trailing_zeros();
+            let m = &mut self.memories[level as usize];
+            for cy in 0..m.rows {
+                for cx in 0..m.stride {
+                    if !share.owns_pixel(cx as u32 * share.tile, cy as u32 * share.tile) {
+                        m.set(cx, cy);
+                    }
+                }
+            }
         }
     }
 

@@ -16,7 +16,10 @@ pub mod edge;
 pub mod gq;
 pub mod spp;
 pub mod tables;
+pub mod texture;
 pub mod vb;
+
+use std::sync::Arc;
 
 use glam::Vec3;
 
@@ -26,7 +29,8 @@ use cc::ColorComputers;
 use gq::{CellProcessors, GqPolygon, MaskLevels};
 use spp::SubpixelProcessors;
 use tables::SppMode;
-use vb::{Image, Readout, VideoBuffer};
+use texture::TextureMaps;
+use vb::{Image, Readout, VbMode, VideoBuffer};
 
 /// How the VP is configured for a frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -39,11 +43,19 @@ pub struct VpConfig {
     pub stats: bool,
     /// Readout options.
     pub readout: Readout,
+    /// How the video buffer stores colours (default: P1's 8-bit log codes).
+    pub vb: VbMode,
 }
 
 impl Default for VpConfig {
     fn default() -> Self {
-        Self { masks: MaskLevels::ALL, spp: SppMode::Area, stats: false, readout: Readout::default() }
+        Self {
+            masks: MaskLevels::ALL,
+            spp: SppMode::Area,
+            stats: false,
+            readout: Readout::default(),
+            vb: VbMode::default(),
+        }
     }
 }
 
@@ -60,6 +72,8 @@ pub struct VideoProcessor {
     pub vb: VideoBuffer,
     /// Counters of the last frame (when `config.stats`).
     pub counters: Counters,
+    /// The texture map memory (none at first: textured faces keep their colour).
+    pub textures: Arc<TextureMaps>,
 }
 
 impl VideoProcessor {
@@ -70,10 +84,17 @@ impl VideoProcessor {
         Self {
             config,
             spp: SubpixelProcessors::new(width, height, config.spp),
-            vb: VideoBuffer::new(width, height),
+            vb: VideoBuffer::new(width, height, config.vb),
             gq,
             counters,
+            textures: Arc::default(),
         }
+    }
+
+    /// Loads the texture map memory (the maps of the scene, indexed like
+    /// `Scene::textures`).
+    pub fn set_textures(&mut self, maps: impl Into<Arc<TextureMaps>>) {
+        self.textures = maps.into();
     }
 
     /// Renders a frame list into the video buffer (which is cleared first).
@@ -94,7 +115,7 @@ impl VideoProcessor {
 
     fn render_inner<const STATS: bool>(&mut self, frame: &FrameList) {
         self.vb.clear();
-        let cc = ColorComputers::new(frame);
+        let cc = ColorComputers::new(frame, &self.textures);
         let mut colors = [Vec3::ZERO; 16];
         let mut inner = Counters::new(self.gq.root_level);
         let vb = &mut self.vb;
@@ -109,6 +130,16 @@ impl VideoProcessor {
         if STATS {
             self.counters.add(&inner);
         }
+    }
+
+    /// The raster stages alone (BP, GQ, SPP with their mask memories), the colour
+    /// units and the video buffer left out: for timing the stages apart.
+    pub fn raster(&mut self, frame: &FrameList) -> u64 {
+        let mut visible = 0u64;
+        Self::run::<false>(&mut self.gq, &mut self.spp, &mut self.counters, frame, &mut |_, vis| {
+            visible += u64::from(vis.sets.iter().any(|&s| s != 0));
+        });
+        visible
     }
 
     /// Which polygon owns every subpixel: `u32::MAX` for the background, else the

@@ -16,7 +16,7 @@
 //! the pixel's top-left. A cell's 16 pixels are indexed `4 y + x` likewise.
 
 use super::edge::{EdgeCode, ExactLine, Tg, EDGE_FRAC_BITS, SNAP_ONE};
-use super::gq::Fragment;
+use super::gq::{Fragment, Share};
 use super::tables::{SppMode, SppTable, SPP_V_BITS};
 use crate::model::stats::Counters;
 
@@ -45,6 +45,8 @@ pub struct SubpixelProcessors {
     pub mode: SppMode,
     /// Use the exact rule in the pixels at an edge's endpoints (table modes).
     pub vertex_exact: bool,
+    /// The part of the screen this VP renders (set before `clear`).
+    pub share: Share,
     table: &'static SppTable,
     /// Cells per row.
     pub stride: usize,
@@ -73,6 +75,7 @@ impl SubpixelProcessors {
         let mut s = Self {
             mode,
             vertex_exact: mode == SppMode::Area,
+            share: Share::WHOLE,
             table: SppTable::get(mode),
             stride,
             rows,
@@ -85,7 +88,8 @@ impl SubpixelProcessors {
         s
     }
 
-    /// Clears the mask memory for a new frame; pixels off the screen are pre-masked.
+    /// Clears the mask memory for a new frame; pixels off the screen, and pixels
+    /// outside this VP's share of the screen, are pre-masked.
     pub fn clear(&mut self) {
         for cy in 0..self.rows {
             for cx in 0..self.stride {
@@ -93,7 +97,7 @@ impl SubpixelProcessors {
                 for (i, px) in m.iter_mut().enumerate() {
                     let x = cx as u32 * CELL_SIDE + (i as u32 & 3);
                     let y = cy as u32 * CELL_SIDE + (i as u32 >> 2);
-                    if x >= self.width || y >= self.height {
+                    if x >= self.width || y >= self.height || !self.share.owns_pixel(x, y) {
                         *px = FULL;
                     }
                 }

@@ -4,4 +4,6 @@ mod canonical;
 mod clip;
 mod gp;
 mod load;
+mod peer;
+mod vb;
 mod vp;

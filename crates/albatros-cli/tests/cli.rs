@@ -1,0 +1,77 @@
+//! End-to-end tests of the `albatros` command: the README's main job works, and bad
+//! input gets a clear error and a non-zero exit, never a panic.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn albatros(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_albatros")).args(args).output().expect("the albatros binary runs")
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("albatros-cli-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// A failure: non-zero exit, a message containing `needle`, no panic.
+fn fails_with(args: &[&str], needle: &str) {
+    let o = albatros(args);
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{args:?} should fail");
+    assert!(err.contains(needle), "{args:?}: message {err:?} should mention {needle:?}");
+    assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
+}
+
+#[test]
+fn render_writes_a_png_of_the_default_scene() {
+    let out = tmp("default.png");
+    let o = albatros(&["render", "--size", "320x240", "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let bytes = std::fs::read(&out).unwrap();
+    assert_eq!(&bytes[1..4], b"PNG");
+}
+
+#[test]
+fn dump_and_info_work_on_the_default_scene() {
+    let out = tmp("dump.json");
+    let o = albatros(&["dump", "default", "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+    assert!(v["polygons"].as_array().unwrap().len() > 100);
+    let o = albatros(&["info", "default"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    for key in ["models", "faces", "bsp", "frame list"] {
+        assert!(text.contains(key), "info lacks {key}: {text}");
+    }
+}
+
+#[test]
+fn tables_writes_hex_files() {
+    let dir = tmp("tables");
+    let o = albatros(&["tables", "--out", dir.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rom = std::fs::read_to_string(dir.join("gq_rom.hex")).unwrap();
+    assert_eq!(rom.lines().count(), 256);
+    assert!(rom.lines().all(|l| l.len() == 2 && u8::from_str_radix(l, 16).is_ok()));
+    let spp = std::fs::read_to_string(dir.join("spp_area.hex")).unwrap();
+    assert_eq!(spp.lines().count(), 2500);
+}
+
+#[test]
+fn bad_input_gets_a_clear_error() {
+    fails_with(&["render", "--size", "0x0"], "out of range");
+    fails_with(&["render", "--size", "100000x100000"], "out of range");
+    fails_with(&["render", "--size", "12by7"], "WxH");
+    fails_with(&["render", "no-such-scene"], "neither a built-in scene");
+    fails_with(&["render", "--masks", "VII"], "--masks");
+    fails_with(&["render", "--gamma", "-1"], "gamma");
+    let bad = tmp("bad.toml");
+    std::fs::write(&bad, "[screen]\nwidth = 640\nheigth = 480\n").unwrap();
+    fails_with(&["render", bad.to_str().unwrap()], "bad.toml:3");
+}

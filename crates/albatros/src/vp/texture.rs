@@ -1,0 +1,620 @@
+//! The texture unit of the colour computers (CC, P2 "Блок текстуры", fig. 1): texture
+//! maps, their mip pyramids and trilinear filtering.
+//!
+//! Input: a pixel's texture coordinates `u`, `v` (in periods, from the CC's
+//! fractional-linear evaluation) and its footprint `S/L = 2 delta Z^2 PAR` (in
+//! periods). Output: the modulation value `T` in `0..=1` that blends the face's two
+//! colours, `C = C1 T + C2 (1 - T)` (done by the CC, [`super::cc`]).
+//!
+//! The rules, after P2:
+//! - A map holds **one modulation value per texel** (not a colour), `2^n x 2^n`
+//!   texels, with its pyramid of `2^(n-1) x 2^(n-1)` ... `1 x 1` levels, each level
+//!   the 2 x 2 box filter of the one above it.
+//! - The map address is the **fractional part** of `u`, `v`: maps repeat.
+//! - **Trilinear**: bilinear interpolation in a level between the four texel centres
+//!   nearest to the point (P2 eq. 3), in two adjacent levels, blended by the footprint.
+//!   The level of detail is `lod = log2((S/L) 2^n)`, the footprint in level-0 texels,
+//!   clamped to the pyramid.
+//!
+//! **Texel format**: `u8`, `T = texel / 255`, as the hardware's map memory held it.
+//! Texel `(i, j)` is column `i` (along `u`, texel `i` covers `u` in
+//! `[i, i + 1) / 2^n`) and row `j` (along `v`, likewise), rows stored from `v = 0` up.
+//! A PNG's top row is the map's last row, so an image appears upright on a face seen
+//! from its front with `u` to the right and `v` up.
+//!
+//! **Invariant**: sampling never panics and never leaves `0..=1`, whatever `u`, `v`
+//! and the footprint (NaN and infinities included): every address is wrapped with a
+//! mask, and a NaN level of detail falls to level 0.
+//!
+//! Files: [`load_png`] and [`TextureMaps::from_scene`] read PNG files; they sit at the
+//! library's edge like `db::load` and are called once at load, never per frame.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use crate::db::{Scene, TextureSource};
+
+/// The names of the built-in procedural maps ([`builtin`]), the names a scene's
+/// texture may give as `builtin`.
+pub const BUILTIN_NAMES: &[&str] = &["grass", "asphalt", "concrete", "checker"];
+
+/// `log2` of the side of the built-in maps: 256 x 256 texels, as fine as a runway
+/// needs and quick to generate (about a millisecond each).
+pub const BUILTIN_LOG2_SIDE: u32 = 8;
+
+/// `log2` of the largest map side accepted from a file: 4096 x 4096 texels (16 MiB of
+/// level 0 texels, 21 MiB with the pyramid).
+pub const MAX_LOG2_SIDE: u32 = 12;
+
+/// The largest map side accepted from a file.
+pub const MAX_SIDE: u32 = 1 << MAX_LOG2_SIDE;
+
+/// Squares per period along `u` and along `v` of the built-in `checker` map: square
+/// `(a, b)` (`a = floor(8 u)`, `b = floor(8 v)` of the fractional parts) has `T = 1`
+/// when `a + b` is even, else `T = 0`.
+pub const CHECKER_SQUARES: u32 = 8;
+
+/// The texel value of `T = 1`.
+const TEXEL_ONE: f32 = 255.0;
+
+/// A single-channel modulation map `2^n x 2^n` with its mip pyramid down to 1 x 1.
+#[derive(Clone, PartialEq, Eq)]
+pub struct TextureMap {
+    /// `n`: level 0 is `2^n x 2^n`.
+    log2_side: u32,
+    /// All levels, level 0 first, each row-major (`j * side + i`).
+    texels: Vec<u8>,
+    /// Where each level starts in `texels`, `n + 1` entries.
+    offsets: Vec<usize>,
+}
+
+impl fmt::Debug for TextureMap {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("TextureMap").field("side", &self.side()).field("levels", &self.levels()).finish_non_exhaustive()
+    }
+}
+
+impl TextureMap {
+    /// A map from its level-0 texels (row-major, `side * side` of them, rows from
+    /// `v = 0` up); builds the pyramid. `None` unless `side` is a power of two not
+    /// above [`MAX_SIDE`] and the texel count fits it.
+    pub fn from_texels(side: u32, texels: Vec<u8>) -> Option<Self> {
+        if !side.is_power_of_two() || side > MAX_SIDE || texels.len() != (side as usize).pow(2) {
+            return None;
+        }
+        let n = side.trailing_zeros();
+        Some(Self::build(n, texels))
+    }
+
+    /// Builds the pyramid over level 0. Every level is the 2 x 2 box filter of the one
+    /// above, computed exactly (as sums of level-0 texels) and rounded once, so that
+    /// rounding does not drift down the pyramid: a map's 1 x 1 level is its mean to
+    /// half a texel step.
+    fn build(n: u32, level0: Vec<u8>) -> Self {
+        let mut offsets = Vec::with_capacity(n as usize + 1);
+        let total: usize = (0..=n).map(|k| 1usize << (2 * (n - k))).sum();
+        let mut texels = Vec::with_capacity(total);
+        // Sums of level-0 texels over each texel of the current level (at most
+        // 4^12 * 255 < 2^32).
+        let mut sums: Vec<u32> = level0.iter().map(|&t| u32::from(t)).collect();
+        offsets.push(0);
+        texels.extend_from_slice(&level0);
+        for k in 1..=n {
+            let side = 1usize << (n - k);
+            let above = side * 2;
+            let next: Vec<u32> = (0..side * side)
+                .map(|idx| {
+                    let (i, j) = (idx % side, idx / side);
+                    let (i2, j2) = (2 * i, 2 * j);
+                    sums[j2 * above + i2]
+                        + sums[j2 * above + i2 + 1]
+                        + sums[(j2 + 1) * above + i2]
+                        + sums[(j2 + 1) * above + i2 + 1]
+                })
+                .collect();
+            // A level-k texel is the mean of 4^k level-0 texels: round half up.
+            let count_log2 = 2 * k;
+            offsets.push(texels.len());
+            texels.extend(next.iter().map(|&s| ((s + (1 << (count_log2 - 1))) >> count_log2) as u8));
+            sums = next;
+        }
+        Self { log2_side: n, texels, offsets }
+    }
+
+    /// `n`, where level 0 is `2^n x 2^n`.
+    pub fn log2_side(&self) -> u32 {
+        self.log2_side
+    }
+
+    /// The side of level 0.
+    pub fn side(&self) -> u32 {
+        1 << self.log2_side
+    }
+
+    /// Number of levels, `n + 1` (the last is 1 x 1).
+    pub fn levels(&self) -> u32 {
+        self.log2_side + 1
+    }
+
+    /// The texels of level `k` (side `2^(n-k)`), row-major; empty past the last level.
+    pub fn level(&self, k: u32) -> &[u8] {
+        let Some(&start) = self.offsets.get(k as usize) else { return &[] };
+        let side = 1usize << (self.log2_side - k);
+        &self.texels[start..start + side * side]
+    }
+
+    /// Texel `(i, j)` of level `k`, the indices wrapped (maps repeat).
+    #[inline]
+    pub fn texel(&self, k: u32, i: i32, j: i32) -> u8 {
+        let k = k.min(self.log2_side);
+        let mask = (1i32 << (self.log2_side - k)) - 1;
+        let side = (mask + 1) as usize;
+        self.texels[self.offsets[k as usize] + (j & mask) as usize * side + (i & mask) as usize]
+    }
+
+    /// Bilinear interpolation in level `k` at `(u, v)` (in periods; the fractional parts
+    /// address the map), P2 eq. (3):
+    /// `T' = (1 - Ku)((1 - Kv) T1 + Kv T2) + Ku((1 - Kv) T3 + Kv T4)`, `T1..T4` the
+    /// texels at the four texel centres around the point (`T1` lower-left, `T2` above
+    /// it, `T3` right of it, `T4` diagonal). The hardware stored
+    /// `T1, T3 - T1, T2 - T1, T4 - T3 - T2 + T1` to save multipliers (P2); the value is
+    /// the same.
+    #[inline]
+    pub fn bilinear(&self, k: u32, u: f32, v: f32) -> f32 {
+        let k = k.min(self.log2_side);
+        let side = (1u32 << (self.log2_side - k)) as f32;
+        // Texel centres sit at (i + 1/2) / side.
+        let (i0, ku) = split(fract01(u) * side - 0.5);
+        let (j0, kv) = split(fract01(v) * side - 0.5);
+        let t1 = f32::from(self.texel(k, i0, j0));
+        let t2 = f32::from(self.texel(k, i0, j0 + 1));
+        let t3 = f32::from(self.texel(k, i0 + 1, j0));
+        let t4 = f32::from(self.texel(k, i0 + 1, j0 + 1));
+        ((1.0 - ku) * ((1.0 - kv) * t1 + kv * t2) + ku * ((1.0 - kv) * t3 + kv * t4)) / TEXEL_ONE
+    }
+
+    /// The level of detail for a footprint of `footprint` periods (P2's `S/L`): `log2`
+    /// of the footprint in level-0 texels, clamped to `0..=n` (NaN gives 0).
+    #[inline]
+    pub fn lod(&self, footprint: f32) -> f32 {
+        // `max` before `min`: `NaN.max(0.0)` is 0.
+        (footprint * self.side() as f32).log2().max(0.0).min(self.log2_side as f32)
+    }
+
+    /// Trilinear filtering: bilinear in levels `floor(lod)` and the next, blended by
+    /// the fractional part of `lod` (P2: `T = Kr T' + (1 - Kr) T''`, `Kr` from the
+    /// footprint).
+    #[inline]
+    pub fn trilinear(&self, u: f32, v: f32, lod: f32) -> f32 {
+        let lod = lod.max(0.0).min(self.log2_side as f32);
+        // Non-negative and at most n: the cast is the floor.
+        let k = lod as u32;
+        let kr = lod - k as f32;
+        let fine = self.bilinear(k, u, v);
+        if kr == 0.0 || k >= self.log2_side {
+            return fine;
+        }
+        let coarse = self.bilinear(k + 1, u, v);
+        fine + kr * (coarse - fine)
+    }
+
+    /// The filtered modulation `T` at `(u, v)` for a footprint of `footprint` periods.
+    #[inline]
+    pub fn sample(&self, u: f32, v: f32, footprint: f32) -> f32 {
+        self.trilinear(u, v, self.lod(footprint))
+    }
+}
+
+/// The fractional part of `x` in `0..=1` (1 only by rounding of tiny negatives); NaN
+/// and infinities give 0.
+#[inline]
+fn fract01(x: f32) -> f32 {
+    (x - x.floor()).max(0.0).min(1.0)
+}
+
+/// Integer part (floor) and fraction of a texel-space coordinate.
+#[inline]
+fn split(s: f32) -> (i32, f32) {
+    let f = s.floor();
+    (f as i32, s - f)
+}
+
+/// The texture maps of a scene, indexed like [`Scene::textures`] (a material's
+/// `texture.map`).
+#[derive(Clone, Default, PartialEq, Eq)]
+pub struct TextureMaps {
+    maps: Vec<TextureMap>,
+}
+
+impl fmt::Debug for TextureMaps {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_list().entries(&self.maps).finish()
+    }
+}
+
+impl TextureMaps {
+    /// Maps given in scene order.
+    pub fn new(maps: Vec<TextureMap>) -> Self {
+        Self { maps }
+    }
+
+    /// Builds or loads every map the scene declares: built-in maps are generated,
+    /// files are read with [`load_png`]. A relative file path is joined to `base_dir`;
+    /// the paths of a scene from `db::load::load_scene` are already joined with the
+    /// scene file's folder, so for those pass `Path::new("")`.
+    pub fn from_scene(scene: &Scene, base_dir: &Path) -> Result<Self, TextureError> {
+        let maps = scene
+            .textures
+            .iter()
+            .map(|def| match &def.source {
+                TextureSource::Builtin(name) => builtin(name)
+                    .ok_or_else(|| TextureError::UnknownBuiltin { texture: def.name.clone(), builtin: name.clone() }),
+                TextureSource::File(path) => load_png(&base_dir.join(path)),
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Self { maps })
+    }
+
+    /// Map `index`, if there is one.
+    #[inline]
+    pub fn get(&self, index: u32) -> Option<&TextureMap> {
+        self.maps.get(index as usize)
+    }
+
+    /// Number of maps.
+    pub fn len(&self) -> usize {
+        self.maps.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.maps.is_empty()
+    }
+}
+
+/// Why a texture map could not be made.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum TextureError {
+    /// The file does not exist.
+    #[error("texture file {}: no such file", path.display())]
+    Missing {
+        /// The file.
+        path: PathBuf,
+    },
+    /// The file exists but could not be read.
+    #[error("texture file {}: cannot read it: {reason}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What the system said.
+        #[source]
+        reason: std::io::Error,
+    },
+    /// The bytes are not a PNG image the decoder can read.
+    #[error("texture file {}: not a readable PNG image ({reason})", path.display())]
+    NotPng {
+        /// The file.
+        path: PathBuf,
+        /// What the decoder said.
+        reason: String,
+    },
+    /// The image is larger than the largest map.
+    #[error("texture file {}: {width} x {height} pixels is larger than the largest map, {max} x {max}", path.display())]
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// Image width.
+        width: u32,
+        /// Image height.
+        height: u32,
+        /// [`MAX_SIDE`].
+        max: u32,
+    },
+    /// A built-in map name that does not exist.
+    #[error("texture '{texture}': unknown builtin map '{builtin}' (builtins are {})", BUILTIN_NAMES.join(", "))]
+    UnknownBuiltin {
+        /// The texture's name in the scene.
+        texture: String,
+        /// The name it gave.
+        builtin: String,
+    },
+}
+
+/// Reads a PNG file into a map (see [`decode_png`] for the conversions).
+pub fn load_png(path: &Path) -> Result<TextureMap, TextureError> {
+    let bytes = std::fs::read(path).map_err(|reason| match reason.kind() {
+        std::io::ErrorKind::NotFound => TextureError::Missing { path: path.to_path_buf() },
+        _ => TextureError::Io { path: path.to_path_buf(), reason },
+    })?;
+    decode_png(&bytes, path)
+}
+
+/// Decodes PNG bytes into a map; `path` names them in errors.
+///
+/// - Colour images are converted to luminance, `0.2126 R + 0.7152 G + 0.0722 B` on
+///   the stored 8-bit values (the `image` crate's conversion); alpha is dropped;
+///   16-bit samples are reduced to 8 bits. The stored value is taken as `T` directly
+///   (`T = value / 255`), with no transfer curve: the map holds modulation factors,
+///   not light.
+/// - An image that is not square with a power-of-two side is **resampled** (bilinear,
+///   wrapping around, since maps repeat) to the next power of two of its larger side:
+///   the whole image is one period of the texture whatever its size, so this only
+///   changes the texel density. Images larger than [`MAX_SIDE`] are an error.
+pub fn decode_png(bytes: &[u8], path: &Path) -> Result<TextureMap, TextureError> {
+    let not_png = |e: image::ImageError| TextureError::NotPng { path: path.to_path_buf(), reason: e.to_string() };
+    // The size first, from the header, so that a huge image is refused before decoding.
+    let (width, height) =
+        image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::Png).into_dimensions().map_err(not_png)?;
+    if width > MAX_SIDE || height > MAX_SIDE {
+        return Err(TextureError::TooLarge { path: path.to_path_buf(), width, height, max: MAX_SIDE });
+    }
+    let luma = image::load_from_memory_with_format(bytes, image::ImageFormat::Png).map_err(not_png)?.into_luma8();
+    let (w, h) = (luma.width(), luma.height());
+    let side = w.max(h).next_power_of_two();
+    let raw = luma.into_raw();
+    let square = if w == side && h == side { raw } else { resample_periodic(&raw, w, h, side) };
+    // PNG rows run top down; map rows run from v = 0 up.
+    let s = side as usize;
+    let texels: Vec<u8> = (0..s).rev().flat_map(|row| square[row * s..(row + 1) * s].iter().copied()).collect();
+    Ok(TextureMap::from_texels(side, texels).expect("side is a power of two within MAX_SIDE"))
+}
+
+/// Bilinear resampling of a `w x h` row-major image to `side x side`, wrapping around
+/// at the borders (the image is one period of a repeating pattern).
+fn resample_periodic(src: &[u8], w: u32, h: u32, side: u32) -> Vec<u8> {
+    // Source position of each target texel centre along one axis: the two source
+    // texels around it (wrapped) and the weight of the second.
+    let taps = |n: u32| -> Vec<(usize, usize, f64)> {
+        (0..side)
+            .map(|i| {
+                let s = (f64::from(i) + 0.5) * f64::from(n) / f64::from(side) - 0.5;
+                let f = s.floor();
+                let i0 = (f as i64).rem_euclid(i64::from(n)) as usize;
+                ((i0), (i0 + 1) % n as usize, s - f)
+            })
+            .collect()
+    };
+    let (tx, ty) = (taps(w), taps(h));
+    let w = w as usize;
+    let mut out = Vec::with_capacity((side as usize).pow(2));
+    for &(y0, y1, fy) in &ty {
+        for &(x0, x1, fx) in &tx {
+            let at = |x: usize, y: usize| f64::from(src[y * w + x]);
+            let top = at(x0, y0) * (1.0 - fx) + at(x1, y0) * fx;
+            let bottom = at(x0, y1) * (1.0 - fx) + at(x1, y1) * fx;
+            out.push((top * (1.0 - fy) + bottom * fy).round().clamp(0.0, 255.0) as u8);
+        }
+    }
+    out
+}
+
+/// A built-in procedural map by name ([`BUILTIN_NAMES`]), 256 x 256, deterministic.
+pub fn builtin(name: &str) -> Option<TextureMap> {
+    let side = 1u32 << BUILTIN_LOG2_SIDE;
+    let f: fn(u32, u32) -> f32 = match name {
+        "grass" => grass,
+        "asphalt" => asphalt,
+        "concrete" => concrete,
+        "checker" => checker,
+        _ => return None,
+    };
+    let texels = (0..side * side).map(|k| to_texel(f(k % side, k / side))).collect();
+    TextureMap::from_texels(side, texels)
+}
+
+/// `T` in `0..=1` to a texel, rounded.
+fn to_texel(t: f32) -> u8 {
+    (t.clamp(0.0, 1.0) * TEXEL_ONE).round() as u8
+}
+
+/// Side of the built-in maps.
+const BUILTIN_SIDE: u32 = 1 << BUILTIN_LOG2_SIDE;
+
+/// `checker`: [`CHECKER_SQUARES`] x [`CHECKER_SQUARES`] squares of `T = 1` and `T = 0`.
+fn checker(i: u32, j: u32) -> f32 {
+    let square = BUILTIN_SIDE / CHECKER_SQUARES;
+    if (i / square + j / square) % 2 == 0 {
+        1.0
+    } else {
+        0.0
+    }
+}
+
+/// `grass`: clumps at several scales (periodic value noise, cells of 64 down to 4
+/// texels) over blade-sized texel noise.
+fn grass(i: u32, j: u32) -> f32 {
+    const SEED: u32 = 0x6772_6173;
+    // (cells per side, amplitude): coarse clumps strongest.
+    const OCTAVES: [(u32, f32); 5] = [(4, 0.30), (8, 0.22), (16, 0.16), (32, 0.12), (64, 0.08)];
+    const BLADES: f32 = 0.18;
+    let clumps: f32 = OCTAVES.iter().map(|&(cells, a)| a * (value_noise(i, j, cells, SEED ^ cells) - 0.5) * 2.0).sum();
+    0.5 + clumps + BLADES * (unit(hash(i, j, SEED)) - 0.5) * 2.0
+}
+
+/// `asphalt`: fine grain (texel noise) over faint patches.
+fn asphalt(i: u32, j: u32) -> f32 {
+    const SEED: u32 = 0x6173_7068;
+    const PATCH_CELLS: u32 = 8;
+    const PATCHES: f32 = 0.08;
+    const GRAIN: f32 = 0.22;
+    const SPECK_EVERY: u32 = 61;
+    let patches = PATCHES * (value_noise(i, j, PATCH_CELLS, SEED) - 0.5) * 2.0;
+    let grain = GRAIN * (unit(hash(i, j, SEED ^ 1)) - 0.5) * 2.0;
+    // A few light stones.
+    let speck = if hash(i, j, SEED ^ 2) % SPECK_EVERY == 0 { 0.3 } else { 0.0 };
+    0.5 + patches + grain + speck
+}
+
+/// `concrete`: 2 x 2 slabs per period, each with its own tone, fine grain, and dark
+/// joints between them.
+fn concrete(i: u32, j: u32) -> f32 {
+    const SEED: u32 = 0x636f_6e63;
+    const SLABS: u32 = 2;
+    const JOINT_HALF_WIDTH: u32 = 2;
+    const JOINT: f32 = 0.08;
+    const SLAB: f32 = 0.62;
+    const SLAB_TONE: f32 = 0.08;
+    const GRAIN: f32 = 0.08;
+    const STAINS: f32 = 0.06;
+    const STAIN_CELLS: u32 = 16;
+    let slab = BUILTIN_SIDE / SLABS;
+    let (a, b) = (i % slab, j % slab);
+    let near_joint = |x: u32| x < JOINT_HALF_WIDTH || x >= slab - JOINT_HALF_WIDTH;
+    if near_joint(a) || near_joint(b) {
+        return JOINT;
+    }
+    let tone = SLAB_TONE * (unit(hash(i / slab, j / slab, SEED)) - 0.5) * 2.0;
+    let stains = STAINS * (value_noise(i, j, STAIN_CELLS, SEED ^ 1) - 0.5) * 2.0;
+    SLAB + tone + stains + GRAIN * (unit(hash(i, j, SEED ^ 2)) - 0.5) * 2.0
+}
+
+/// Periodic value noise over the built-in map: a lattice of `cells x cells` random
+/// values (wrapping, so the map tiles), smoothly interpolated; in `0..=1`.
+fn value_noise(i: u32, j: u32, cells: u32, seed: u32) -> f32 {
+    let cell = BUILTIN_SIDE / cells;
+    let (ci, cj) = (i / cell, j / cell);
+    let smooth = |t: f32| t * t * (3.0 - 2.0 * t);
+    let fx = smooth(((i % cell) as f32 + 0.5) / cell as f32);
+    let fy = smooth(((j % cell) as f32 + 0.5) / cell as f32);
+    let at = |x: u32, y: u32| unit(hash(x % cells, y % cells, seed));
+    let top = at(ci, cj) + (at(ci + 1, cj) - at(ci, cj)) * fx;
+    let bottom = at(ci, cj + 1) + (at(ci + 1, cj + 1) - at(ci, cj + 1)) * fx;
+    top + (bottom - top) * fy
+}
+
+/// An integer hash of a lattice point (a `lowbias32`-style mixer).
+fn hash(x: u32, y: u32, seed: u32) -> u32 {
+    const K1: u32 = 0x7feb_352d;
+    const K2: u32 = 0x846c_a68b;
+    const Y_MIX: u32 = 0x9e37_79b9;
+    let mut h = x ^ y.wrapping_mul(Y_MIX) ^ seed.rotate_left(16);
+    h ^= h >> 16;
+    h = h.wrapping_mul(K1);
+    h ^= h >> 15;
+    h = h.wrapping_mul(K2);
+    h ^= h >> 16;
+    h
+}
+
+/// A hash as a number in `[0, 1)`.
+fn unit(h: u32) -> f32 {
+    // The top 24 bits: exactly representable in f32.
+    (h >> 8) as f32 / (1u32 << 24) as f32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ramp(side: u32) -> TextureMap {
+        let texels = (0..side * side).map(|k| ((k * 7 + k / side * 13) % 256) as u8).collect();
+        TextureMap::from_texels(side, texels).unwrap()
+    }
+
+    #[test]
+    fn pyramid_levels_are_box_filtered() {
+        let m = ramp(16);
+        assert_eq!(m.levels(), 5);
+        for k in 0..m.levels() {
+            assert_eq!(m.level(k).len(), (16usize >> k).pow(2));
+        }
+        assert!(m.level(5).is_empty());
+        // Level 1 from level 0, exactly (one rounding).
+        for j in 0..8 {
+            for i in 0..8 {
+                let s: u32 = [(0, 0), (1, 0), (0, 1), (1, 1)]
+                    .iter()
+                    .map(|&(a, b)| u32::from(m.texel(0, 2 * i + a, 2 * j + b)))
+                    .sum();
+                assert_eq!(u32::from(m.texel(1, i, j)), (s + 2) / 4);
+            }
+        }
+        // The last level is the rounded mean.
+        let sum: u32 = m.level(0).iter().map(|&t| u32::from(t)).sum();
+        assert_eq!(u32::from(m.level(4)[0]), (sum + 128) / 256);
+    }
+
+    #[test]
+    fn rejects_bad_sizes() {
+        assert!(TextureMap::from_texels(3, vec![0; 9]).is_none());
+        assert!(TextureMap::from_texels(4, vec![0; 15]).is_none());
+        assert!(TextureMap::from_texels(0, vec![]).is_none());
+        assert!(TextureMap::from_texels(1, vec![7]).is_some());
+    }
+
+    #[test]
+    fn bilinear_hits_texel_centres_and_wraps() {
+        let m = ramp(8);
+        for j in 0..8 {
+            for i in 0..8 {
+                let (u, v) = ((i as f32 + 0.5) / 8.0, (j as f32 + 0.5) / 8.0);
+                let t = f32::from(m.texel(0, i, j)) / 255.0;
+                assert!((m.bilinear(0, u, v) - t).abs() < 1e-6);
+                // Whole periods away: the same.
+                assert!((m.bilinear(0, u + 3.0, v - 5.0) - t).abs() < 1e-5);
+            }
+        }
+        // Between the last and the first texel the map wraps.
+        let mid = m.bilinear(0, 0.0, 0.5 / 8.0);
+        let expect = (f32::from(m.texel(0, 7, 0)) + f32::from(m.texel(0, 0, 0))) / 2.0 / 255.0;
+        assert!((mid - expect).abs() < 1e-6);
+    }
+
+    #[test]
+    fn sampling_survives_any_input() {
+        let m = builtin("grass").unwrap();
+        for x in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -1e30, 1e30, -1e-12, 0.999_999_9] {
+            for fp in [f32::NAN, f32::INFINITY, 0.0, -1.0, 1e-9, 1e9] {
+                let t = m.sample(x, 0.25, fp);
+                assert!((0.0..=1.0).contains(&t), "u = {x}, footprint = {fp}: {t}");
+                let t = m.sample(0.25, x, fp);
+                assert!((0.0..=1.0).contains(&t), "v = {x}, footprint = {fp}: {t}");
+            }
+        }
+    }
+
+    #[test]
+    fn lod_is_the_footprint_in_texels() {
+        let m = builtin("checker").unwrap();
+        assert_eq!(m.lod(1.0 / 256.0), 0.0);
+        assert_eq!(m.lod(4.0 / 256.0), 2.0);
+        assert_eq!(m.lod(1e-6), 0.0);
+        assert_eq!(m.lod(100.0), 8.0);
+        assert_eq!(m.lod(f32::NAN), 0.0);
+        // Far beyond the pyramid: the mean.
+        assert!((m.sample(0.3, 0.7, 1.0) - 128.0 / 255.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn builtins_are_deterministic_and_distinct() {
+        for name in BUILTIN_NAMES {
+            let a = builtin(name).unwrap();
+            assert_eq!(a, builtin(name).unwrap(), "{name}");
+            assert_eq!(a.side(), 256);
+            let mean = f64::from(a.level(8)[0]) / 255.0;
+            assert!((0.1..0.9).contains(&mean), "{name}: mean {mean}");
+        }
+        assert!(builtin("marble").is_none());
+        assert_ne!(builtin("grass").unwrap(), builtin("asphalt").unwrap());
+    }
+
+    #[test]
+    fn checker_matches_its_definition() {
+        let m = builtin("checker").unwrap();
+        for (u, v, t) in [(0.01, 0.01, 255), (0.13, 0.01, 0), (0.13, 0.13, 255), (0.99, 0.01, 0)] {
+            let (i, j) = ((u * 256.0) as i32, (v * 256.0) as i32);
+            assert_eq!(m.texel(0, i, j), t, "({u}, {v})");
+        }
+    }
+
+    #[test]
+    fn resampling_keeps_constants_and_power_of_two_sides() {
+        let src = vec![77u8; 3 * 5];
+        let out = resample_periodic(&src, 3, 5, 8);
+        assert_eq!(out, vec![77u8; 64]);
+        // Already square: the identity.
+        let src: Vec<u8> = (0..16).map(|k| k * 10).collect();
+        assert_eq!(resample_periodic(&src, 4, 4, 4), src);
+    }
+}
