@@ -14,6 +14,7 @@ use albatros::db::{builtin, load, Scene, Screen};
 use albatros::gp::{self, Clipper, Database, GpConfig, GpCounters};
 use albatros::vp::gq::{CellProcessors, MaskLevels};
 use albatros::vp::tables::{GqRom, SppMode, SppTable};
+use albatros::vp::texture::TextureMaps;
 use albatros::vp::vb::{Readout, VbMode};
 use albatros::vp::{VideoProcessor, VpConfig};
 
@@ -234,6 +235,8 @@ fn render(args: RenderArgs) -> Result<()> {
         vb: args.vb,
     };
     let mut vp = VideoProcessor::new(screen.width, screen.height, config);
+    // Texture files were resolved against the scene file's folder by the loader.
+    vp.set_textures(TextureMaps::from_scene(&db.scene, Path::new(""))?);
     let image = vp.render(&frame);
     std::fs::write(&args.output, image.encode_png()).with_context(|| format!("writing {}", args.output.display()))?;
     println!(
@@ -321,6 +324,7 @@ fn bench(args: BenchArgs) -> Result<()> {
         let screen = scene.screen;
         let db = Database::new(scene);
         let mut vp = VideoProcessor::new(screen.width, screen.height, VpConfig::default());
+        vp.set_textures(TextureMaps::from_scene(&db.scene, Path::new(""))?);
         let (mut total, mut gp_t, mut raster_t, mut color_t, mut readout_t) = (vec![], vec![], vec![], vec![], vec![]);
         let mut counters = GpCounters::default();
         for f in 0..args.warmup + args.frames {

@@ -147,10 +147,17 @@ impl Bsp {
         if bsp.faces.is_empty() {
             return bsp;
         }
-        // Work stack: (node index to fill, parent link to patch, faces, depth).
+        // Work stack of nodes to build.
+        struct Work {
+            /// The parent and whether this is its front child.
+            link: Option<(u32, bool)>,
+            /// The faces in this node's region.
+            list: Vec<u32>,
+            depth: usize,
+        }
         let all: Vec<u32> = (0..bsp.faces.len() as u32).collect();
-        let mut stack: Vec<(Option<(u32, bool)>, Vec<u32>, usize)> = vec![(None, all, 1)];
-        while let Some((link, list, depth)) = stack.pop() {
+        let mut stack = vec![Work { link: None, list: all, depth: 1 }];
+        while let Some(Work { link, list, depth }) = stack.pop() {
             let node = bsp.nodes.len() as u32;
             if let Some((parent, front)) = link {
                 let p = &mut bsp.nodes[parent as usize];
@@ -201,10 +208,10 @@ impl Bsp {
             }
             bsp.nodes.push(BspNode { plane, front: NONE, back: NONE, faces: on });
             if !back.is_empty() {
-                stack.push((Some((node, false)), back, depth + 1));
+                stack.push(Work { link: Some((node, false)), list: back, depth: depth + 1 });
             }
             if !front.is_empty() {
-                stack.push((Some((node, true)), front, depth + 1));
+                stack.push(Work { link: Some((node, true)), list: front, depth: depth + 1 });
             }
         }
         bsp.stats.nodes = bsp.nodes.len();

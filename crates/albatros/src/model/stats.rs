@@ -115,4 +115,161 @@ impl Counters {
     pub fn cells_tested(&self) -> u64 {
         self.levels.iter().map(|l| l.tested).sum()
     }
+
+    /// Cells of level `k` that a GQ split (the cells the GQ of level `k` took as
+    /// parents): the IN and CR children that level `k-1` handed on, plus the
+    /// descents that started at level `k` and were not dropped whole. Zero for the
+    /// last level, whose cells go to the SPPs instead.
+    pub fn cells_split(&self, k: u32) -> u64 {
+        if k >= self.root_level {
+            return 0;
+        }
+        self.cells_entering(k)
+    }
+
+    /// Cells of level `k` that went on from it (to the GQ of level `k` or, at the last
+    /// level, to the SPPs): IN and CR children plus unmasked starts.
+    pub fn cells_entering(&self, k: u32) -> u64 {
+        self.levels.get(k as usize).map_or(0, |l| (l.inside + l.crossed + l.starts).saturating_sub(l.polygons_masked))
+    }
+
+    /// Pixels covered by at least one polygon: every such pixel gets exactly one VB
+    /// first write from a polygon (the background's writes are not counted).
+    pub fn covered_pixels(&self) -> u64 {
+        self.color.first_writes
+    }
+
+    /// Figures derived from the counters (ratios are 0 where the denominator is).
+    pub fn derived(&self) -> Derived {
+        let covered = self.covered_pixels();
+        let ratio = |a: u64, b: u64| if b == 0 { 0.0 } else { a as f64 / b as f64 };
+        let masked: u64 = self.levels.iter().map(|l| l.masked).sum();
+        let candidates: u64 = self.levels.iter().map(|l| l.inside + l.crossed + l.masked).sum();
+        Derived {
+            covered_pixels: covered,
+            cells_tested: self.cells_tested(),
+            cells_masked: masked,
+            polygons_masked: self.levels.iter().map(|l| l.polygons_masked).sum(),
+            masked_share_of_candidates: ratio(masked, candidates),
+            masked_share_per_level: self
+                .levels
+                .iter()
+                .map(|l| ratio(l.masked, l.inside + l.crossed + l.masked))
+                .collect(),
+            visible_fragments_per_covered_pixel: ratio(self.spp.pixels_visible, covered),
+            spp_pixels_per_covered_pixel: ratio(self.spp.pixels_touched, covered),
+            visible_area_pixels: self.spp.subpixels_set as f64 / SUBPIXELS_PER_PIXEL as f64,
+        }
+    }
+
+    /// The identities that hold between the counters of one frame by construction of
+    /// the GQ, SPP, CC and VB; each broken one is described in the result (empty:
+    /// all hold). They are (with `L` the root level, `split(k)` =
+    /// [`Self::cells_split`]):
+    /// 1. every tested cell is exactly one of IN, CR, OUT, masked:
+    ///    `tested[k] = inside[k] + crossed[k] + outside[k] + masked[k]`;
+    /// 2. nothing tests the root: `tested[0] = 0`, and no edge test is counted there;
+    /// 3. the children of split cells: `tested[k+1] = 4 split(k)` for `k < L`;
+    /// 4. the fragments the SPPs got are the level-`L` cells that went on:
+    ///    `fragments = inside[L] + crossed[L] + starts[L] - polygons_masked[L]`;
+    /// 5. the SPPs look every active edge up in 16 pixels: `edge_lookups` is a
+    ///    multiple of 16;
+    /// 6. `pixels_visible <= pixels_touched <= 16 fragments`, and a pixel with visible
+    ///    area has 1 to 16 newly set subpixels: `pixels_visible <= subpixels_set <=
+    ///    16 pixels_visible`;
+    /// 7. every visible pixel is coloured by exactly one CC channel:
+    ///    `sum(pixels_per_channel) = pixels_visible`;
+    /// 8. every visible pixel is one VB write: `first_writes + read_modify_writes =
+    ///    pixels_visible`, and no pixel has more than 16 subpixels:
+    ///    `subpixels_set <= 16 first_writes`;
+    /// 9. polygons dropped whole are among those that started at that level.
+    pub fn violations(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        let l = self.root_level as usize;
+        let mut check = |ok: bool, what: String| {
+            if !ok {
+                out.push(what);
+            }
+        };
+        check(self.levels.len() == l + 1, format!("{} levels for root level {l}", self.levels.len()));
+        for (k, c) in self.levels.iter().enumerate() {
+            check(
+                c.tested == c.inside + c.crossed + c.outside + c.masked,
+                format!(
+                    "level {k}: tested {} != IN {} + CR {} + OUT {} + masked {}",
+                    c.tested, c.inside, c.crossed, c.outside, c.masked
+                ),
+            );
+            check(
+                c.polygons_masked <= c.starts,
+                format!("level {k}: {} polygons dropped of {} started", c.polygons_masked, c.starts),
+            );
+        }
+        if let Some(root) = self.levels.first() {
+            check(root.tested == 0 && root.edge_tests == 0, format!("level 0: {} cells tested", root.tested));
+        }
+        for k in 0..l {
+            let children = self.levels[k + 1].tested;
+            let split = self.cells_split(k as u32);
+            check(children == 4 * split, format!("level {}: tested {children} != 4 x {split} split at level {k}", k + 1));
+        }
+        let s = &self.spp;
+        let entering = self.cells_entering(self.root_level);
+        check(s.fragments == entering, format!("SPP fragments {} != {entering} level-{l} cells handed on", s.fragments));
+        check(s.edge_lookups % PIXELS_PER_CELL == 0, format!("SPP edge look-ups {} not a multiple of 16", s.edge_lookups));
+        check(
+            s.pixels_visible <= s.pixels_touched && s.pixels_touched <= PIXELS_PER_CELL * s.fragments,
+            format!("SPP pixels visible {} / touched {} / fragments {}", s.pixels_visible, s.pixels_touched, s.fragments),
+        );
+        check(
+            s.pixels_visible <= s.subpixels_set && s.subpixels_set <= SUBPIXELS_PER_PIXEL * s.pixels_visible,
+            format!("SPP subpixels set {} for {} visible pixels", s.subpixels_set, s.pixels_visible),
+        );
+        let c = &self.color;
+        let coloured: u64 = c.pixels_per_channel.iter().sum();
+        check(coloured == s.pixels_visible, format!("CC coloured {coloured} != SPP visible {}", s.pixels_visible));
+        check(
+            c.first_writes + c.read_modify_writes == s.pixels_visible,
+            format!(
+                "VB writes {} + {} != SPP visible {}",
+                c.first_writes, c.read_modify_writes, s.pixels_visible
+            ),
+        );
+        check(
+            s.subpixels_set <= SUBPIXELS_PER_PIXEL * c.first_writes,
+            format!("{} subpixels set in {} covered pixels", s.subpixels_set, c.first_writes),
+        );
+        out
+    }
+}
+
+/// Pixels of a last-level (4 x 4) cell: one SPP each.
+pub const PIXELS_PER_CELL: u64 = 16;
+/// Subpixels of a pixel (4 x 4).
+pub const SUBPIXELS_PER_PIXEL: u64 = 16;
+
+/// Figures derived from one frame's [`Counters`] (see [`Counters::derived`]).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Derived {
+    /// Pixels covered by at least one polygon (VB first writes).
+    pub covered_pixels: u64,
+    /// Cells tested over all levels.
+    pub cells_tested: u64,
+    /// Cells dropped by a mask memory, over all levels.
+    pub cells_masked: u64,
+    /// Polygons dropped whole, over all levels.
+    pub polygons_masked: u64,
+    /// Of the cells found IN or CR (the candidates), the share a mask dropped.
+    pub masked_share_of_candidates: f64,
+    /// The same per level (index = level).
+    pub masked_share_per_level: Vec<f64>,
+    /// Visible fragment pixels per covered pixel: how many fragments the VB blends
+    /// into a covered pixel on average (1 where every pixel is one polygon's).
+    pub visible_fragments_per_covered_pixel: f64,
+    /// Pixels of the cells that reached the SPPs per covered pixel: the depth of work
+    /// the SPPs see, which the masks reduce.
+    pub spp_pixels_per_covered_pixel: f64,
+    /// The visible areas of all fragments summed, in pixels: the screen area covered
+    /// by polygons.
+    pub visible_area_pixels: f64,
 }

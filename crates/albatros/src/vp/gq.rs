@@ -159,6 +159,26 @@ pub struct Cell {
     pub y: u32,
 }
 
+/// What a GQ decided about a cell, as recorded for pictures (see
+/// [`CellProcessors::recorder`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum CellKind {
+    /// Wholly inside the polygon (IN): marked in the mask, still descended.
+    Inside,
+    /// Crossed by an edge (CR): descended with the edges that cross it.
+    Crossed,
+    /// Wholly outside the polygon (OUT): dropped.
+    Outside,
+    /// Inside or crossed, but the level's mask memory said "covered": dropped.
+    Masked,
+    /// The polygon's starting (bounding) cell lay in a covered cell: the whole polygon
+    /// was dropped there.
+    PolygonMasked,
+}
+
+/// One recorded GQ decision: the cell and what was decided.
+pub type CellRecord = (Cell, CellKind);
+
 /// The GQ pipeline: one cell processor and one mask memory per level.
 #[derive(Clone, Debug)]
 pub struct CellProcessors {
@@ -172,6 +192,12 @@ pub struct CellProcessors {
     pub masks: MaskLevels,
     /// The part of the screen this VP renders.
     pub share: Share,
+    /// When `Some`, every cell the GQs test during a descent *with counting on*
+    /// (`STATS`) is appended, in processing order, with its [`CellKind`]; polygons
+    /// dropped whole add their starting cell. For the `render --cells` picture.
+    /// Recording lives in the counting instantiation only, so with counting off it is
+    /// compiled out; with counting on and `None` it costs one branch per split cell.
+    pub recorder: Option<Vec<CellRecord>>,
     memories: Vec<MaskMemory>,
     scratch: Vec<Vec<ActiveEdge>>,
     codes: Vec<Vec<(u8, u8)>>,
@@ -223,6 +249,7 @@ impl CellProcessors {
             height,
             masks,
             share: Share::WHOLE,
+            recorder: None,
             memories,
             scratch: vec![Vec::new(); root_level as usize + 1],
             codes: vec![Vec::new(); root_level as usize + 1],
@@ -292,6 +319,9 @@ impl CellProcessors {
                 if self.memories[k as usize].get((start.x >> shift) as usize, (start.y >> shift) as usize) {
                     if STATS {
                         counters.levels[start.level as usize].polygons_masked += 1;
+                        if let Some(rec) = &mut self.recorder {
+                            rec.push((start, CellKind::PolygonMasked));
+                        }
                     }
                     return;
                 }
@@ -374,6 +404,21 @@ impl CellProcessors {
             lc.crossed += u64::from((cri & !ci).count_ones());
             lc.outside += u64::from((!cri_all & 0xF).count_ones());
             lc.masked += u64::from((m & cri_all).count_ones());
+            if let Some(rec) = &mut self.recorder {
+                for c in 0..4u32 {
+                    let kind = if cri_all >> c & 1 == 0 {
+                        CellKind::Outside
+                    } else if m >> c & 1 == 1 {
+                        CellKind::Masked
+                    } else if ci >> c & 1 == 1 {
+                        CellKind::Inside
+                    } else {
+                        CellKind::Crossed
+                    };
+                    let child = Cell { level: child_level, x: cell.x * 2 + (c & 1), y: cell.y * 2 + (c >> 1) };
+                    rec.push((child, kind));
+                }
+            }
         }
         if poly.opaque && mem_on {
             for c in 0..4u32 {

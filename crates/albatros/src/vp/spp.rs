@@ -56,6 +56,9 @@ pub struct SubpixelProcessors {
     height: u32,
     /// Subpixel mask memory, a `[u16; 16]` (256 bits) per 4x4 cell.
     masks: Vec<[u16; 16]>,
+    /// The mask memory as a frame starts (pre-masked pixels set), for `share`.
+    cleared: Vec<[u16; 16]>,
+    cleared_share: Option<Share>,
     thin: Vec<[u16; 16]>,
 }
 
@@ -82,6 +85,8 @@ impl SubpixelProcessors {
             width,
             height,
             masks: vec![[0; 16]; stride * rows],
+            cleared: Vec::new(),
+            cleared_share: None,
             thin: (0..64).map(thinning).collect(),
         };
         s.clear();
@@ -91,19 +96,24 @@ impl SubpixelProcessors {
     /// Clears the mask memory for a new frame; pixels off the screen, and pixels
     /// outside this VP's share of the screen, are pre-masked.
     pub fn clear(&mut self) {
-        for cy in 0..self.rows {
-            for cx in 0..self.stride {
-                let mut m = [0u16; 16];
-                for (i, px) in m.iter_mut().enumerate() {
-                    let x = cx as u32 * CELL_SIDE + (i as u32 & 3);
-                    let y = cy as u32 * CELL_SIDE + (i as u32 >> 2);
-                    if x >= self.width || y >= self.height || !self.share.owns_pixel(x, y) {
-                        *px = FULL;
+        if self.cleared_share != Some(self.share) {
+            self.cleared = (0..self.rows * self.stride)
+                .map(|c| {
+                    let (cx, cy) = ((c % self.stride) as u32, (c / self.stride) as u32);
+                    let mut m = [0u16; 16];
+                    for (i, px) in m.iter_mut().enumerate() {
+                        let x = cx * CELL_SIDE + (i as u32 & 3);
+                        let y = cy * CELL_SIDE + (i as u32 >> 2);
+                        if x >= self.width || y >= self.height || !self.share.owns_pixel(x, y) {
+                            *px = FULL;
+                        }
                     }
-                }
-                self.masks[cy * self.stride + cx] = m;
-            }
+                    m
+                })
+                .collect();
+            self.cleared_share = Some(self.share);
         }
+        self.masks.copy_from_slice(&self.cleared);
     }
 
     /// The mask memory word of the cell at `(cx, cy)`.
@@ -126,6 +136,9 @@ impl SubpixelProcessors {
         let mut code = [FULL; 16];
         for a in frag.active {
             let e = &edges[a.edge as usize];
+            // Whether an endpoint of the edge is near this cell at all (else no pixel
+            // of it is a vertex pixel of this edge).
+            let vertex_cell = self.vertex_exact && near_end_cell(&e.exact, frag.px, frag.py);
             // V on the five pixel lines of the cell: rows for a vertical edge,
             // columns for a horizontal one (exact: additions of the slope).
             let mut v = [0i64; 5];
@@ -145,7 +158,7 @@ impl SubpixelProcessors {
                         Tg::Horizontal => across * 4 + along,
                     };
                     let (x, y) = (frag.px + (pixel as u32 & 3), frag.py + (pixel as u32 >> 2));
-                    if self.vertex_exact && near_end(&e.exact, x, y) {
+                    if vertex_cell && near_end(&e.exact, x, y) {
                         code[pixel] &= exact_set(&e.exact, e.lr, x, y);
                         continue;
                     }
@@ -243,6 +256,16 @@ const VERTEX_MARGIN: i32 = SNAP_ONE / 2;
 fn near_end(line: &ExactLine, x: u32, y: u32) -> bool {
     let (x0, y0) = (x as i32 * SNAP_ONE - VERTEX_MARGIN, y as i32 * SNAP_ONE - VERTEX_MARGIN);
     let (x1, y1) = ((x as i32 + 1) * SNAP_ONE + VERTEX_MARGIN, (y as i32 + 1) * SNAP_ONE + VERTEX_MARGIN);
+    line.ends.iter().any(|&(ex, ey)| ex >= x0 && ex <= x1 && ey >= y0 && ey <= y1)
+}
+
+/// Whether one of the edge's endpoints lies within [`VERTEX_MARGIN`] of the 4x4 cell
+/// at pixel `(px, py)`.
+#[inline]
+fn near_end_cell(line: &ExactLine, px: u32, py: u32) -> bool {
+    let side = CELL_SIDE as i32 * SNAP_ONE;
+    let (x0, y0) = (px as i32 * SNAP_ONE - VERTEX_MARGIN, py as i32 * SNAP_ONE - VERTEX_MARGIN);
+    let (x1, y1) = (x0 + side + 2 * VERTEX_MARGIN, y0 + side + 2 * VERTEX_MARGIN);
     line.ends.iter().any(|&(ex, ey)| ex >= x0 && ex <= x1 && ey >= y0 && ey <= y1)
 }
 

@@ -93,8 +93,8 @@ impl GqRom {
             let lr = addr >> 6 & 1 == 1;
             let b = [(addr >> 4 & 3) as i32 - 1, (addr >> 2 & 3) as i32 - 1, (addr & 3) as i32 - 1];
             let (mut ci, mut cri) = (0u8, 0u8);
-            for child in 0..4 {
-                let (col, row) = ((child & 1) as i32, (child >> 1) as i32);
+            for child in 0..4i32 {
+                let (col, row) = (child & 1, child >> 1);
                 // The child's stretch of the line: (first border, middle) or (middle,
                 // second border), and the child's position across V.
                 let (along, across) = match tg {
@@ -268,6 +268,23 @@ fn round_half_even(v: f64) -> f64 {
     }
 }
 
+/// The README written beside the hex files by `albatros tables`.
+pub const TABLES_README: &str = "\
+Albatros video processor ROM tables, $readmemh format (one hex word per line, address order).
+
+gq_rom.hex     256 x 8 bits. The cell processors' (GQ) CI/CRI table.
+               address = TG<<7 | LR<<6 | b1<<4 | bm<<2 | b2
+                 TG = 1 vertical edge (V are X at the cell's top/bottom), 0 horizontal (V are Y at left/right)
+                 LR = 1 the polygon lies on the side of greater V
+                 b1, bm, b2 = clamp(floor((V - cell origin) / (side/2)), -1, 2) + 1 for V1, (V1+V2)/2, V2
+               data = CRI<<4 | CI, one bit per child: 0 top-left, 1 top-right, 2 bottom-left, 3 bottom-right
+spp_area.hex   2500 x 16 bits. Subpixel processors' (SPP) table, area-faithful build (P1).
+spp_sample.hex 2500 x 16 bits. The same, point-sample build.
+               address = ((TG*2 + LR)*25 + q1+8)*25 + q2+8
+                 q = round(8 * (V - pixel origin)), saturated to -8..16 (eighths of a pixel)
+               data = subpixel set, bit 4*sy+sx for subpixel column sx, row sy from the pixel's top-left
+";
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -298,20 +315,3 @@ mod tests {
         assert_eq!(transpose(0x000F), 0x1111);
     }
 }
-
-/// The README written beside the hex files by `albatros tables`.
-pub const TABLES_README: &str = "\
-Albatros video processor ROM tables, $readmemh format (one hex word per line, address order).
-
-gq_rom.hex     256 x 8 bits. The cell processors' (GQ) CI/CRI table.
-               address = TG<<7 | LR<<6 | b1<<4 | bm<<2 | b2
-                 TG = 1 vertical edge (V are X at the cell's top/bottom), 0 horizontal (V are Y at left/right)
-                 LR = 1 the polygon lies on the side of greater V
-                 b1, bm, b2 = clamp(floor((V - cell origin) / (side/2)), -1, 2) + 1 for V1, (V1+V2)/2, V2
-               data = CRI<<4 | CI, one bit per child: 0 top-left, 1 top-right, 2 bottom-left, 3 bottom-right
-spp_area.hex   2500 x 16 bits. Subpixel processors' (SPP) table, area-faithful build (P1).
-spp_sample.hex 2500 x 16 bits. The same, point-sample build.
-               address = ((TG*2 + LR)*25 + q1+8)*25 + q2+8
-                 q = round(8 * (V - pixel origin)), saturated to -8..16 (eighths of a pixel)
-               data = subpixel set, bit 4*sy+sx for subpixel column sx, row sy from the pixel's top-left
-";

@@ -208,6 +208,7 @@ impl TextureMap {
 /// The fractional part of `x` in `0..=1` (1 only by rounding of tiny negatives); NaN
 /// and infinities give 0.
 #[inline]
+#[expect(clippy::manual_clamp, reason = "max then min maps NaN to 0, where clamp would keep it")]
 fn fract01(x: f32) -> f32 {
     (x - x.floor()).max(0.0).min(1.0)
 }
@@ -344,8 +345,13 @@ pub fn load_png(path: &Path) -> Result<TextureMap, TextureError> {
 pub fn decode_png(bytes: &[u8], path: &Path) -> Result<TextureMap, TextureError> {
     let not_png = |e: image::ImageError| TextureError::NotPng { path: path.to_path_buf(), reason: e.to_string() };
     // The size first, from the header, so that a huge image is refused before decoding.
-    let (width, height) =
-        image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::Png).into_dimensions().map_err(not_png)?;
+    let (width, height) = image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::Png)
+        .into_dimensions()
+        .map_err(not_png)?;
+    if width == 0 || height == 0 {
+        // The decoder refuses these already; the resampler must never see one.
+        return Err(TextureError::NotPng { path: path.to_path_buf(), reason: "the image is empty".into() });
+    }
     if width > MAX_SIDE || height > MAX_SIDE {
         return Err(TextureError::TooLarge { path: path.to_path_buf(), width, height, max: MAX_SIDE });
     }

@@ -446,7 +446,7 @@ fn terrain_and_city_sizes() {
     let boxes = c.instances.iter().filter(|i| c.models[i.model as usize].faces.len() == 6).count();
     assert!((2000..=10_000).contains(&boxes), "{boxes} buildings");
     assert_eq!((c.screen.width, c.screen.height), (1024, 768));
-    assert!(c.eye.position.z < 50.0, "street-ish height");
+    assert!(c.eye.position.z < 150.0, "low over the roofs, so the rows of buildings hide one another");
 }
 
 #[test]

@@ -4,6 +4,8 @@ mod canonical;
 mod clip;
 mod gp;
 mod load;
+mod model;
 mod peer;
+mod texture;
 mod vb;
 mod vp;

@@ -140,7 +140,8 @@ fn steps(row: &[u8], ideal: &[f64]) -> Steps {
 /// step by at most one level (with and without F2), the 8-bit linear path steps by
 /// more. Gamma 2.2. Below linear 1/400 (the log code's smallest value, level 16.7) the
 /// 8-bit log path steps from 0 to it as the linear one steps from 0 to 1/255 (level
-/// 20.5): printed, not asserted; 9 bits cover it.
+/// 20.5): printed, not asserted; 9 bits cover it (asserted: no step anywhere beyond
+/// the float path's).
 #[test]
 fn vb_dark_gradient_has_no_contours_in_log() {
     const W: u32 = 512;
@@ -186,6 +187,9 @@ fn vb_dark_gradient_has_no_contours_in_log() {
         assert!(get(VbMode::LOG8).smooth <= 1, "F2 {filter}: the 8-bit log path contours");
         assert!(get(VbMode::LINEAR8).smooth > 1, "F2 {filter}: the 8-bit linear path should contour");
         assert!(get(VbMode::FLOAT).smooth <= 1, "F2 {filter}: the float path contours");
+        // 9 bits reach the output floor: no step anywhere beyond the float path's.
+        let (log9, float) = (get(VbMode::Log { bits: 9 }).anywhere, get(VbMode::FLOAT).anywhere);
+        assert!(log9 <= float, "F2 {filter}: 9-bit log steps by {log9}, float by {float}");
     }
 }
 
@@ -233,6 +237,9 @@ fn exact_code(s: &LogScale, c: f64) -> f64 {
     f64::from(s.one()) + c.ln() / s.alpha()
 }
 
+/// Random f32 inputs per bit count for the encoder ROM.
+const ENCODER_SAMPLES: usize = 200_000;
+
 /// The log scale's constants and tables against their definitions, for every bit count.
 #[test]
 fn vb_log_tables_match_definitions() {
@@ -267,6 +274,23 @@ fn vb_log_tables_match_definitions() {
             assert!((f64::from(v) * QUARTER - e).abs() <= QUARTER / 2.0 + 1e-9);
         }
         assert_eq!(l[15], 0);
+        // The encoder ROM gives its f64 definition exactly: at every threshold, one
+        // pattern below it, and on random f32 patterns of every kind.
+        let (rom, shift) = s.encoder_table();
+        for &(up_from, _) in rom.iter().filter(|e| e.0 != u32::MAX) {
+            for bits in [up_from - 1, up_from] {
+                let c = f32::from_bits(bits);
+                assert_eq!(s.encode(c), s.encode_exact(f64::from(c)), "{bits} bits: encode({c:e})");
+            }
+        }
+        let mut rng = Rng(u64::from(bits));
+        for _ in 0..ENCODER_SAMPLES {
+            let c = f32::from_bits(rng.next_u64() as u32);
+            let near = (rng.range(-16.0, 1.0) as f32).exp();
+            for c in [c, near] {
+                assert_eq!(s.encode(c), s.encode_exact(f64::from(c)), "{bits} bits: encode({c:e})");
+            }
+        }
         // The gamma table: zero to 0, Q1 to 255, gamma 1 is linear.
         let g = s.gamma_table(1.0);
         assert_eq!(g.len(), 4 * usize::from(s.one()) + 1);
@@ -275,12 +299,14 @@ fn vb_log_tables_match_definitions() {
         assert!(g[mid].abs_diff(128) <= 1, "{bits} bits: half is {}", g[mid]);
         println!(
             "log{bits}: alpha {:.5} (step {:.2}%), range 1/{:.0}, ln(1+e^x) table {} entries (max {}), \
-             table error {worst:.4} codes",
+             table error {worst:.4} codes; encoder ROM {} entries, M = {}",
             s.alpha(),
             100.0 * s.alpha().exp_m1(),
             1.0 / s.min_value(),
             t.len(),
-            t[0]
+            t[0],
+            rom.len(),
+            23 - shift
         );
     }
 }
@@ -380,6 +406,7 @@ fn vb_cost() {
         // F1 alone: every cell of the screen written once fully and once by a
         // partial fragment (a read-modify-write).
         let (w, h) = (frame.width, frame.height);
+        assert!(w % 4 == 0 && h % 4 == 0, "whole cells");
         let mut vb = VideoBuffer::new(w, h, mode);
         let mut rng = Rng(7);
         let colors: [Vec3; 16] =

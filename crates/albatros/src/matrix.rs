@@ -1,0 +1,134 @@
+//! The matrix of video processors (P3, SYSTEM.md 5): `p x q` VPs on threads.
+//!
+//! The GP broadcasts one frame list to every VP; VP `(i, j)` renders only its share
+//! of the screen ([`Share`]): the tiles at tile column `i mod p`, row `j mod q`. With
+//! one-pixel tiles this is P3's interleave by single pixels (each VP on a sparse
+//! raster of the whole screen); with tiles of `4 * 2^m` pixels it is an interleave by
+//! whole cells, which keeps a VP's work above the tile level from being repeated by
+//! the others. Everything outside a VP's share is pre-masked in its mask memories, so
+//! the descent is the ordinary one.
+//!
+//! The video memories together form one interleaved image: each pixel is taken from
+//! the VP that owns it, then read out once (the F2 filter needs neighbours from other
+//! VPs). **Invariant: the image is the same, byte for byte, whatever the matrix size,
+//! the tile size and the number of threads** — every pixel sees the same polygons in
+//! the same order with the same subpixel decisions.
+
+use rayon::prelude::*;
+
+use crate::frame::FrameList;
+use crate::model::stats::Counters;
+use crate::vp::gq::Share;
+use crate::vp::vb::Image;
+use crate::vp::{VideoProcessor, VpConfig};
+
+/// A matrix of video processors.
+pub struct Matrix {
+    /// Columns.
+    pub p: u32,
+    /// Rows.
+    pub q: u32,
+    /// Tile side in pixels (1 for P3's pixel interleave).
+    pub tile: u32,
+    vps: Vec<VideoProcessor>,
+    pool: rayon::ThreadPool,
+}
+
+/// A matrix shape that is not possible.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum MatrixError {
+    /// Zero rows or columns, or too many VPs.
+    #[error("matrix {p} x {q}: each side must be 1..=64")]
+    Shape {
+        /// Columns.
+        p: u32,
+        /// Rows.
+        q: u32,
+    },
+    /// The tile side is not a power of two or is too big.
+    #[error("tile side {0}: must be a power of two from 1 to 4096 pixels")]
+    Tile(u32),
+    /// The thread pool could not be made.
+    #[error("thread pool: {0}")]
+    Threads(String),
+}
+
+/// The largest matrix side.
+pub const MAX_SIDE: u32 = 64;
+/// The largest tile side in pixels.
+pub const MAX_TILE: u32 = 4096;
+/// The tile side used when none is given: 16-pixel tiles (cells of level L-2), small
+/// enough to balance the load, large enough that the descent above them is shared
+/// little.
+pub const DEFAULT_TILE: u32 = 16;
+
+impl Matrix {
+    /// A `p x q` matrix for a `width x height` screen, running on `threads` threads.
+    pub fn new(width: u32, height: u32, config: VpConfig, p: u32, q: u32, tile: u32, threads: usize) -> Result<Self, MatrixError> {
+        if p == 0 || q == 0 || p > MAX_SIDE || q > MAX_SIDE {
+            return Err(MatrixError::Shape { p, q });
+        }
+        if !tile.is_power_of_two() || tile > MAX_TILE {
+            return Err(MatrixError::Tile(tile));
+        }
+        let mut vps = Vec::with_capacity((p * q) as usize);
+        for j in 0..q {
+            for i in 0..p {
+                let mut vp = VideoProcessor::new(width, height, config);
+                let share = Share { tile, p, q, i, j };
+                vp.gq.share = share;
+                vp.spp.share = share;
+                vps.push(vp);
+            }
+        }
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads.max(1))
+            .build()
+            .map_err(|e| MatrixError::Threads(e.to_string()))?;
+        Ok(Self { p, q, tile, vps, pool })
+    }
+
+    /// A matrix for `n` threads: `n` VPs in a near-square shape, interleaved by
+    /// [`DEFAULT_TILE`]-pixel tiles.
+    pub fn for_threads(width: u32, height: u32, config: VpConfig, n: usize) -> Result<Self, MatrixError> {
+        let n = n.clamp(1, (MAX_SIDE * MAX_SIDE) as usize) as u32;
+        let mut p = (n as f64).sqrt().floor() as u32;
+        while n % p != 0 {
+            p -= 1;
+        }
+        Self::new(width, height, config, n / p, p, DEFAULT_TILE, n as usize)
+    }
+
+    /// Renders a frame list on every VP and gathers the interleaved image.
+    pub fn render(&mut self, frame: &FrameList) -> Image {
+        self.render_frame(frame);
+        let (first, rest) = self.vps.split_first_mut().expect("at least one VP");
+        for vp in rest.iter() {
+            let share = vp.gq.share;
+            first.vb.copy_from(&vp.vb, |x, y| share.owns_pixel(x, y));
+        }
+        first.vb.read_out(&first.config.readout)
+    }
+
+    /// Renders a frame list on every VP (their video memories hold the result).
+    pub fn render_frame(&mut self, frame: &FrameList) {
+        let vps = &mut self.vps;
+        self.pool.install(|| vps.par_iter_mut().for_each(|vp| vp.render_frame(frame)));
+    }
+
+    /// The VPs' counters, summed.
+    pub fn counters(&self) -> Counters {
+        let mut c = Counters::new(self.vps[0].gq.root_level);
+        for vp in &self.vps {
+            c.add(&vp.counters);
+        }
+        c.polygons = self.vps[0].counters.polygons;
+        c
+    }
+
+    /// The video processors.
+    pub fn vps(&self) -> &[VideoProcessor] {
+        &self.vps
+    }
+}
