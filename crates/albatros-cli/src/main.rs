@@ -12,6 +12,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 
 use albatros::db::{builtin, load, Scene, Screen};
 use albatros::gp::{self, Clipper, Database, GpConfig, GpCounters};
+use albatros::matrix::Matrix;
 use albatros::vp::gq::{CellProcessors, MaskLevels};
 use albatros::vp::tables::{GqRom, SppMode, SppTable};
 use albatros::vp::texture::TextureMaps;
@@ -311,8 +312,8 @@ fn bench(args: BenchArgs) -> Result<()> {
     if args.frames == 0 {
         bail!("--frames must be at least 1");
     }
-    if args.threads != 1 {
-        bail!("--threads {}: only 1 is implemented so far", args.threads);
+    if args.threads == 0 || args.threads > 256 {
+        bail!("--threads {} must be 1..=256", args.threads);
     }
     let names: Vec<String> = if args.scenes.is_empty() { builtin::NAMES.iter().map(|s| s.to_string()).collect() } else { args.scenes.clone() };
     if !args.json {
@@ -323,19 +324,37 @@ fn bench(args: BenchArgs) -> Result<()> {
         let scene = load_scene(&scene_args)?;
         let screen = scene.screen;
         let db = Database::new(scene);
+        let maps = std::sync::Arc::new(TextureMaps::from_scene(&db.scene, Path::new(""))?);
         let mut vp = VideoProcessor::new(screen.width, screen.height, VpConfig::default());
-        vp.set_textures(TextureMaps::from_scene(&db.scene, Path::new(""))?);
+        vp.set_textures(maps.clone());
+        let mut matrix = Matrix::for_threads(screen.width, screen.height, VpConfig::default(), args.threads)?;
+        matrix.set_textures(maps);
         let (mut total, mut gp_t, mut raster_t, mut color_t, mut readout_t) = (vec![], vec![], vec![], vec![], vec![]);
         let mut counters = GpCounters::default();
         for f in 0..args.warmup + args.frames {
             let t0 = std::time::Instant::now();
             let frame = gp::frame(&db, &db.scene.eye, screen, &GpConfig::default(), &mut counters);
             let t1 = std::time::Instant::now();
-            vp.raster(&frame);
-            let t2 = std::time::Instant::now();
-            vp.render_frame(&frame);
+            // One thread: the raster stages alone, then the whole VP (colour and VB by
+            // difference). More: the matrix, all stages together.
+            let t2 = if args.threads == 1 {
+                vp.raster(&frame);
+                std::time::Instant::now()
+            } else {
+                t1
+            };
+            let image = if args.threads == 1 {
+                vp.render_frame(&frame);
+                None
+            } else {
+                matrix.render_frame(&frame);
+                Some(())
+            };
             let t3 = std::time::Instant::now();
-            let image = vp.vb.read_out(&vp.config.readout);
+            let image = match image {
+                None => vp.vb.read_out(&vp.config.readout),
+                Some(()) => matrix.read_out(),
+            };
             let t4 = std::time::Instant::now();
             std::hint::black_box(image);
             if f >= args.warmup {

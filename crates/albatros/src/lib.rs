@@ -13,6 +13,7 @@
 pub mod db;
 pub mod frame;
 pub mod gp;
+pub mod matrix;
 pub mod model;
 pub mod peer;
 pub mod vp;

@@ -103,6 +103,11 @@ impl Matrix {
     /// Renders a frame list on every VP and gathers the interleaved image.
     pub fn render(&mut self, frame: &FrameList) -> Image {
         self.render_frame(frame);
+        self.read_out()
+    }
+
+    /// Gathers the VPs' video memories into one interleaved image and reads it out.
+    pub fn read_out(&mut self) -> Image {
         let (first, rest) = self.vps.split_first_mut().expect("at least one VP");
         for vp in rest.iter() {
             let share = vp.gq.share;
@@ -115,6 +120,13 @@ impl Matrix {
     pub fn render_frame(&mut self, frame: &FrameList) {
         let vps = &mut self.vps;
         self.pool.install(|| vps.par_iter_mut().for_each(|vp| vp.render_frame(frame)));
+    }
+
+    /// Gives every VP the texture maps.
+    pub fn set_textures(&mut self, maps: std::sync::Arc<crate::vp::texture::TextureMaps>) {
+        for vp in &mut self.vps {
+            vp.set_textures(maps.clone());
+        }
     }
 
     /// The VPs' counters, summed.

@@ -174,6 +174,9 @@ pub enum CellKind {
     /// The polygon's starting (bounding) cell lay in a covered cell: the whole polygon
     /// was dropped there.
     PolygonMasked,
+    /// The polygon's starting (bounding) cell, where its descent begins (recorded
+    /// before the cells of that descent).
+    Start,
 }
 
 /// One recorded GQ decision: the cell and what was decided.
@@ -325,6 +328,11 @@ impl CellProcessors {
                     }
                     return;
                 }
+            }
+        }
+        if STATS {
+            if let Some(rec) = &mut self.recorder {
+                rec.push((start, CellKind::Start));
             }
         }
         let side = i64::from(self.side(start.level));

@@ -734,9 +734,38 @@ impl VideoBuffer {
         Image { width: self.width, height: self.height, pixels }
     }
 
+    /// Copies the pixels `(x, y)` for which `owns(x, y)` holds from a buffer of the
+    /// same size and mode (P3: the video memories of a VP matrix together form one
+    /// interleaved image). Panics on a buffer of another size or mode.
+    pub fn copy_from(&mut self, other: &VideoBuffer, owns: impl Fn(u32, u32) -> bool) {
+        assert_eq!(
+            (self.width, self.height, self.mode()),
+            (other.width, other.height, other.mode()),
+            "video buffers of different sizes or modes"
+        );
+        let width = self.width;
+        match (&mut self.memory, &other.memory) {
+            (Memory::Float(dst), Memory::Float(src)) => copy_owned(dst, src, width, &owns),
+            (Memory::Log { codes: dst, .. }, Memory::Log { codes: src, .. })
+            | (Memory::Linear { codes: dst, .. }, Memory::Linear { codes: src, .. }) => {
+                copy_owned(dst, src, width, &owns)
+            }
+            _ => unreachable!("the modes were compared above"),
+        }
+    }
+
     /// Cells per row and rows of 4x4 cells covering the buffer.
     pub fn cells(&self) -> (usize, usize) {
         (self.width.div_ceil(CELL_SIDE) as usize, self.height.div_ceil(CELL_SIDE) as usize)
+    }
+}
+
+/// Copies the row-major pixels that `owns(x, y)` selects.
+fn copy_owned<T: Copy>(dst: &mut [T], src: &[T], width: u32, owns: &impl Fn(u32, u32) -> bool) {
+    for (i, (d, &s)) in dst.iter_mut().zip(src).enumerate() {
+        if owns(i as u32 % width, i as u32 / width) {
+            *d = s;
+        }
     }
 }
 

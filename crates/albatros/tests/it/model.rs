@@ -255,14 +255,15 @@ fn the_cell_recorder_agrees_with_the_counters() {
                 CellKind::Outside => s.outside += 1,
                 CellKind::Masked => s.masked += 1,
                 CellKind::PolygonMasked => s.polygons_masked += 1,
+                CellKind::Start => s.starts += 1,
             }
-            if *kind != CellKind::PolygonMasked {
+            if !matches!(kind, CellKind::PolygonMasked | CellKind::Start) {
                 s.tested += 1;
             }
         }
         for (k, (s, c)) in seen.iter().zip(&vp.counters.levels).enumerate() {
-            let want = (c.tested, c.inside, c.crossed, c.outside, c.masked, c.polygons_masked);
-            let got = (s.tested, s.inside, s.crossed, s.outside, s.masked, s.polygons_masked);
+            let want = (c.tested, c.inside, c.crossed, c.outside, c.masked, c.polygons_masked, c.starts);
+            let got = (s.tested, s.inside, s.crossed, s.outside, s.masked, s.polygons_masked, s.starts + s.polygons_masked);
             assert_eq!(got, want, "level {k}");
         }
     }

@@ -431,3 +431,22 @@ fn vb_cost() {
         );
     }
 }
+
+/// P3's interleaved video memories: `copy_from` takes exactly the owned pixels.
+#[test]
+fn vb_copy_from_takes_owned_pixels() {
+    let frame = gradient_frame(64, 32, 0.8);
+    for mode in [VbMode::LOG8, VbMode::FLOAT, VbMode::LINEAR8] {
+        let mut vp = vp_for(&frame, mode);
+        vp.render_frame(&frame);
+        let mut gathered = VideoBuffer::new(frame.width, frame.height, mode);
+        let owns = |x: u32, y: u32| (x + 2 * y) % 3 == 0;
+        gathered.copy_from(&vp.vb, owns);
+        for y in 0..frame.height {
+            for x in 0..frame.width {
+                let want = if owns(x, y) { vp.vb.linear(x, y) } else { Vec3::ZERO };
+                assert_eq!(gathered.linear(x, y), want, "{mode} ({x}, {y})");
+            }
+        }
+    }
+}

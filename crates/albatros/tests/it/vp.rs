@@ -390,3 +390,28 @@ fn pipeline_matches_a_plain_reference_renderer() {
         println!("{mode:?}: {diffs} of {samples} subpixels differ from the reference, the farthest {worst:.4} px from an edge");
     }
 }
+
+#[test]
+fn same_bytes_whatever_the_matrix_size_or_thread_count() {
+    use albatros::matrix::Matrix;
+    for name in ["default", "rombm", "city", "terrain"] {
+        let mut scene = albatros::db::builtin::scene(name).unwrap();
+        scene.screen = albatros::db::Screen { width: 200, height: 150 };
+        let db = albatros::gp::Database::new(scene);
+        let (frame, _) = albatros::gp::frame_of_scene(&db, &albatros::gp::GpConfig::default());
+        let maps = albatros::vp::texture::TextureMaps::from_scene(&db.scene, std::path::Path::new("")).unwrap();
+        let maps = std::sync::Arc::new(maps);
+        let mut single = VideoProcessor::new(200, 150, VpConfig { stats: true, ..VpConfig::default() });
+        single.set_textures(maps.clone());
+        let want = single.render(&frame);
+        for (p, q, tile, threads) in [(2, 1, 16, 2), (1, 2, 4, 2), (2, 2, 1, 2), (3, 2, 8, 4), (4, 4, 64, 3), (2, 2, 256, 1)] {
+            let mut m = Matrix::new(200, 150, VpConfig { stats: true, ..VpConfig::default() }, p, q, tile, threads).unwrap();
+            m.set_textures(maps.clone());
+            let got = m.render(&frame);
+            assert!(got == want, "{name}: matrix {p}x{q}, tiles of {tile}, {threads} threads changed the image");
+            // The SPPs of all VPs together see each visible pixel once.
+            let c = m.counters();
+            assert_eq!(c.spp.pixels_visible, single.counters.spp.pixels_visible, "{name} {p}x{q}/{tile}");
+        }
+    }
+}
