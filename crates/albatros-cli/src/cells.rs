@@ -3,9 +3,10 @@
 //! recorder on (`CellProcessors::recorder`, which needs counting on) gives both the
 //! image and every decision of every GQ, which are drawn over a dimmed grey copy of
 //! the image:
-//! - **masked** cells (IN or CR, dropped by a mask memory) filled translucent red,
-//!   and the starting cells of polygons dropped whole filled magenta: big squares
-//!   are work saved high in the tree (P1 fig. 4's point);
+//! - **masked** cells (IN or CR, dropped by a mask memory) outlined red, and the
+//!   starting cells of polygons dropped whole outlined magenta; the screen under them
+//!   is tinted once, by the coarsest cell dropped there: big squares are work saved
+//!   high in the tree (P1 fig. 4's point);
 //! - **CR** cells (crossed by an edge) outlined in yellow: the edges' trail down the
 //!   levels;
 //! - **IN** cells outlined in green, only the top cell of each inside subtree (its
@@ -29,7 +30,7 @@ pub const ENLARGE_UP_TO: u32 = 1024;
 pub const FINEST_SHADE: f32 = 0.55;
 /// The dimmed image's brightness under the overlay.
 const BACKDROP: f32 = 0.45;
-/// Opacity of the masked cells' fill.
+/// Opacity of the tint under dropped cells.
 const MASK_FILL: f32 = 0.35;
 /// Opacity of the OUT cells' outline.
 const OUT_ALPHA: f32 = 0.5;
@@ -95,14 +96,6 @@ impl Canvas {
         }
     }
 
-    fn fill(&mut self, cell: &Cell, side: u32, color: [f32; 3], a: f32) {
-        let (x0, y0, s) = self.rect(cell, side);
-        for y in y0..(y0 + s).min(self.height) {
-            for x in x0..(x0 + s).min(self.width) {
-                self.blend(x, y, color, a);
-            }
-        }
-    }
 }
 
 /// Draws the recorded cells of a frame of root level `root_level` over `image`.
@@ -123,7 +116,33 @@ pub fn overlay(image: &Image, cells: &[CellRecord], root_level: u32) -> Image {
         let t = if root_level == 0 { 0.0 } else { level as f32 / root_level as f32 };
         color.map(|c| c * (1.0 - t * (1.0 - FINEST_SHADE)))
     };
-    // Outlines first: OUT, then IN subtree tops and CR cells, per polygon's descent.
+    // The work the masks saved: each screen pixel tinted once, by the coarsest cell
+    // dropped over it (many polygons may be dropped over the same place).
+    let mut dropped: Vec<Option<(u32, [f32; 3])>> = vec![None; (image.width * image.height) as usize];
+    for (cell, kind) in cells {
+        let color = match kind {
+            CellKind::Masked => RED,
+            CellKind::PolygonMasked => MAGENTA,
+            _ => continue,
+        };
+        let s = side(cell.level);
+        for y in (cell.y * s)..((cell.y + 1) * s).min(image.height) {
+            for x in (cell.x * s)..((cell.x + 1) * s).min(image.width) {
+                let d = &mut dropped[(y * image.width + x) as usize];
+                if d.is_none_or(|(level, _)| cell.level < level) {
+                    *d = Some((cell.level, color));
+                }
+            }
+        }
+    }
+    for y in 0..height {
+        for x in 0..width {
+            if let Some((level, color)) = dropped[((y / scale) * image.width + x / scale) as usize] {
+                canvas.blend(x, y, shade(color, level), MASK_FILL);
+            }
+        }
+    }
+    // Outlines: OUT, IN subtree tops and CR cells, per polygon's descent.
     let mut inside: HashSet<(u32, u32, u32)> = HashSet::new();
     for (cell, kind) in cells {
         let s = side(cell.level);
@@ -141,16 +160,14 @@ pub fn overlay(image: &Image, cells: &[CellRecord], root_level: u32) -> Image {
             CellKind::Masked | CellKind::PolygonMasked => {}
         }
     }
-    // Then the work the masks saved, on top.
+    // The dropped cells' outlines on top: where, and at which level, work was saved.
     for (cell, kind) in cells {
         let color = match kind {
             CellKind::Masked => RED,
             CellKind::PolygonMasked => MAGENTA,
             _ => continue,
         };
-        let s = side(cell.level);
-        canvas.fill(cell, s, color, MASK_FILL);
-        canvas.outline(cell, s, shade(color, cell.level), 1.0);
+        canvas.outline(cell, side(cell.level), shade(color, cell.level), 1.0);
     }
     let pixels = canvas.rgb.iter().flat_map(|p| p.map(|c| c.round().clamp(0.0, 255.0) as u8)).collect();
     Image { width, height, pixels }

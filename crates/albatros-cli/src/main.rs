@@ -315,9 +315,16 @@ fn bench(args: BenchArgs) -> Result<()> {
     if args.threads == 0 || args.threads > 256 {
         bail!("--threads {} must be 1..=256", args.threads);
     }
-    let names: Vec<String> = if args.scenes.is_empty() { builtin::NAMES.iter().map(|s| s.to_string()).collect() } else { args.scenes.clone() };
+    let names: Vec<String> = if args.scenes.is_empty() {
+        builtin::NAMES.iter().map(|s| s.to_string()).collect()
+    } else {
+        args.scenes.clone()
+    };
     if !args.json {
-        println!("{:<10} {:>10} {:>7} {:>9} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9}", "scene", "size", "frames", "median", "min", "max", "fps", "gp", "raster", "color+vb", );
+        println!(
+            "{:<10} {:>10} {:>7} {:>9} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9}",
+            "scene", "size", "frames", "median", "min", "max", "fps", "gp", "raster", "color+vb",
+        );
     }
     for name in names {
         let scene_args = SceneArgs { scene: name.clone(), size: args.size, clipper: ClipperArg::Automaton };
@@ -367,7 +374,8 @@ fn bench(args: BenchArgs) -> Result<()> {
             }
         }
         let (median, min, max) = spread(total);
-        let (gp_m, raster_m, color_m, readout_m) = (spread(gp_t).0, spread(raster_t).0, spread(color_t).0, spread(readout_t).0);
+        let (gp_m, raster_m, color_m, readout_m) =
+            (spread(gp_t).0, spread(raster_t).0, spread(color_t).0, spread(readout_t).0);
         if args.json {
             let v = serde_json::json!({
                 "scene": name, "width": screen.width, "height": screen.height, "threads": args.threads,

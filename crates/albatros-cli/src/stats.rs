@@ -131,7 +131,7 @@ fn overhead(ex: &Experiment, masks: MaskLevels, n: usize) -> (f64, f64) {
     vp_off.config.stats = false;
     let mut vp_on = ex.video_processor(masks);
     let (mut off, mut on) = (Vec::with_capacity(n), Vec::with_capacity(n));
-    let mut time = |vp: &mut VideoProcessor| {
+    let time = |vp: &mut VideoProcessor| {
         let t = Instant::now();
         vp.render_frame(ex.frame);
         t.elapsed().as_secs_f64() * 1e3

@@ -70,7 +70,8 @@ fn bad_input_gets_a_clear_error() {
     fails_with(&["render", "--size", "12by7"], "WxH");
     fails_with(&["render", "no-such-scene"], "neither a built-in scene");
     fails_with(&["render", "--masks", "VII"], "--masks");
-    fails_with(&["render", "--gamma", "-1"], "gamma");
+    fails_with(&["render", "--gamma=-1"], "gamma");
+    fails_with(&["render", "--gamma=0"], "gamma");
     let bad = tmp("bad.toml");
     std::fs::write(&bad, "[screen]\nwidth = 640\nheigth = 480\n").unwrap();
     fails_with(&["render", bad.to_str().unwrap()], "bad.toml:3");

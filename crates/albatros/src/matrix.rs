@@ -65,7 +65,15 @@ pub const DEFAULT_TILE: u32 = 16;
 
 impl Matrix {
     /// A `p x q` matrix for a `width x height` screen, running on `threads` threads.
-    pub fn new(width: u32, height: u32, config: VpConfig, p: u32, q: u32, tile: u32, threads: usize) -> Result<Self, MatrixError> {
+    pub fn new(
+        width: u32,
+        height: u32,
+        config: VpConfig,
+        p: u32,
+        q: u32,
+        tile: u32,
+        threads: usize,
+    ) -> Result<Self, MatrixError> {
         if p == 0 || q == 0 || p > MAX_SIDE || q > MAX_SIDE {
             return Err(MatrixError::Shape { p, q });
         }

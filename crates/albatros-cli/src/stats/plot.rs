@@ -163,7 +163,7 @@ fn cells_per_level(path: &Path, r: &Report) -> Result<()> {
             chart
                 .draw_series(LineSeries::new(points.clone(), color.stroke_width(STROKE)))
                 .map_err(pe)?
-                .label(format!("mode {} (levels {:?})", run.mode, run.mask_levels))
+                .label(format!("mode {} (mask levels {})", run.mode, super::levels_text(&run.mask_levels)))
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(STROKE)));
             chart.draw_series(points.iter().map(|&p| Circle::new(p, MARKER, color.filled()))).map_err(pe)?;
         }
@@ -321,6 +321,7 @@ fn fig4_chart(path: &Path, scenes: &[SceneTimes], hw: &HwConfig) -> Result<()> {
             .x_labels(n)
             .x_label_formatter(&label)
             .y_desc("estimated frame time, ms")
+            .y_label_formatter(&|v| format!("{v}"))
             .label_style((FAMILY, LABEL_SIZE))
             .draw()
             .map_err(pe)?;
@@ -342,7 +343,7 @@ fn fig4_chart(path: &Path, scenes: &[SceneTimes], hw: &HwConfig) -> Result<()> {
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
         chart
             .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
+            .position(SeriesLabelPosition::LowerRight)
             .label_font((FAMILY, LABEL_SIZE))
             .background_style(WHITE.mix(0.85))
             .border_style(BLACK)

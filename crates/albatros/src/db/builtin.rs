@@ -806,7 +806,8 @@ fn city() -> Scene {
     // complexity).
     const EYE_BACK: f32 = -40.0;
     const EYE_HEIGHT: f32 = 110.0;
-    s.eye = Eye { position: Vec3::new(EYE_BACK, EYE_BACK, EYE_HEIGHT), heading: 45.0, pitch: -14.0, roll: 0.0, fov: 60.0 };
+    s.eye =
+        Eye { position: Vec3::new(EYE_BACK, EYE_BACK, EYE_HEIGHT), heading: 45.0, pitch: -14.0, roll: 0.0, fov: 60.0 };
     s.screen = Screen { width: 1024, height: 768 };
     s.env.visibility = 4000.0;
     s

@@ -210,13 +210,7 @@ impl<'a> Experiment<'a> {
 
     /// The full report: the frame with no masks, the coverage probe, and one run per
     /// `(name, masks)` in `modes`.
-    pub fn report(
-        &self,
-        scene: &str,
-        gp: Option<GpCounters>,
-        modes: &[(String, MaskLevels)],
-        hw: &HwConfig,
-    ) -> Report {
+    pub fn report(&self, scene: &str, gp: Option<GpCounters>, modes: &[(String, MaskLevels)], hw: &HwConfig) -> Report {
         let base = self.counters(MaskLevels::NONE);
         let polygon_pixels = self.polygon_pixels();
         let covered = base.covered_pixels();

@@ -195,7 +195,13 @@ impl EdgeCode {
         let cc = -(ca * ax + cb * ay);
         let (pa, pb) = ((a.0 .0, a.1 .0), (b.0 .0, b.1 .0));
         let ends = if pa <= pb { [pa, pb] } else { [pb, pa] };
-        Some(Self { tg, lr, origin: EdgeCoord(origin), slope: EdgeCoord(slope), exact: ExactLine { a: ca, b: cb, c: cc, ends } })
+        Some(Self {
+            tg,
+            lr,
+            origin: EdgeCoord(origin),
+            slope: EdgeCoord(slope),
+            exact: ExactLine { a: ca, b: cb, c: cc, ends },
+        })
     }
 
     /// V on the integer pixel line `t` (a row `y = t` for a vertical edge, a column

@@ -413,19 +413,7 @@ impl CellProcessors {
             lc.outside += u64::from((!cri_all & 0xF).count_ones());
             lc.masked += u64::from((m & cri_all).count_ones());
             if let Some(rec) = &mut self.recorder {
-                for c in 0..4u32 {
-                    let kind = if cri_all >> c & 1 == 0 {
-                        CellKind::Outside
-                    } else if m >> c & 1 == 1 {
-                        CellKind::Masked
-                    } else if ci >> c & 1 == 1 {
-                        CellKind::Inside
-                    } else {
-                        CellKind::Crossed
-                    };
-                    let child = Cell { level: child_level, x: cell.x * 2 + (c & 1), y: cell.y * 2 + (c >> 1) };
-                    rec.push((child, kind));
-                }
+                record_children(rec, cell, cri_all, m, ci);
             }
         }
         if poly.opaque && mem_on {
@@ -468,5 +456,27 @@ impl CellProcessors {
                 self.split::<STATS>(child_cell, poly, counters, spp);
             }
         }
+    }
+}
+
+/// Appends the four children of `cell` to a recorder with what the GQ decided about
+/// each (`cri_all`: IN or CR by the edges; `m`: covered by the mask; `ci`: IN after
+/// the mask). Out of line and cold: it only runs when pictures are asked for, and
+/// keeps [`CellProcessors::split`]'s counting path short.
+#[cold]
+#[inline(never)]
+fn record_children(rec: &mut Vec<CellRecord>, cell: Cell, cri_all: u8, m: u8, ci: u8) {
+    for c in 0..4u32 {
+        let kind = if cri_all >> c & 1 == 0 {
+            CellKind::Outside
+        } else if m >> c & 1 == 1 {
+            CellKind::Masked
+        } else if ci >> c & 1 == 1 {
+            CellKind::Inside
+        } else {
+            CellKind::Crossed
+        };
+        let child = Cell { level: cell.level + 1, x: cell.x * 2 + (c & 1), y: cell.y * 2 + (c >> 1) };
+        rec.push((child, kind));
     }
 }

@@ -6,10 +6,10 @@
 use std::path::{Path, PathBuf};
 
 use albatros::db::{builtin, Screen};
+use albatros::matrix::Matrix;
+use albatros::vp::texture::TextureMaps;
 use albatros::vp::vb::Image;
-use albatros::vp::VpConfig;
-
-use crate::vp::render_scene;
+use albatros::vp::{VideoProcessor, VpConfig};
 
 fn golden_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden")
@@ -32,7 +32,8 @@ pub fn check_golden(name: &str, image: &Image) {
         std::fs::write(&path, image.encode_png()).unwrap();
         return;
     }
-    let want = decode(&std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e} (UPDATE_GOLDEN=1 makes it)", path.display())));
+    let want =
+        decode(&std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e} (UPDATE_GOLDEN=1 makes it)", path.display())));
     if &want == image {
         return;
     }
@@ -40,18 +41,29 @@ pub fn check_golden(name: &str, image: &Image) {
     std::fs::create_dir_all(&out).unwrap();
     std::fs::write(out.join(format!("{name}.png")), image.encode_png()).unwrap();
     if (want.width, want.height) == (image.width, image.height) {
-        let diff: Vec<u8> = want.pixels.iter().zip(&image.pixels).map(|(a, b)| a.abs_diff(*b).saturating_mul(8)).collect();
+        let diff: Vec<u8> =
+            want.pixels.iter().zip(&image.pixels).map(|(a, b)| a.abs_diff(*b).saturating_mul(8)).collect();
         let d = Image { width: want.width, height: want.height, pixels: diff };
         std::fs::write(out.join(format!("{name}-diff.png")), d.encode_png()).unwrap();
     }
     panic!("{name}: the image differs from {} (new image and difference in {})", path.display(), out.display());
 }
 
+/// Renders a built-in scene small, with its textures, on one VP and on a 2 x 2
+/// matrix on two threads: both must match the golden image.
 fn golden_scene(name: &str, w: u32, h: u32) {
     let mut scene = builtin::scene(name).unwrap();
     scene.screen = Screen { width: w, height: h };
-    let (image, _) = render_scene(&scene, VpConfig::default());
-    check_golden(name, &image);
+    let db = albatros::gp::Database::new(scene);
+    let (frame, _) = albatros::gp::frame_of_scene(&db, &albatros::gp::GpConfig::default());
+    let maps = std::sync::Arc::new(TextureMaps::from_scene(&db.scene, Path::new("")).unwrap());
+    let mut vp = VideoProcessor::new(w, h, VpConfig::default());
+    vp.set_textures(maps.clone());
+    let single = vp.render(&frame);
+    check_golden(name, &single);
+    let mut m = Matrix::new(w, h, VpConfig::default(), 2, 2, 16, 2).unwrap();
+    m.set_textures(maps);
+    assert!(m.render(&frame) == single, "{name}: the 2 x 2 matrix on two threads differs");
 }
 
 #[test]

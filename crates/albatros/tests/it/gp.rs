@@ -31,7 +31,8 @@ pub fn random_scene(seed: u64, n: usize, screen: Screen) -> Scene {
     scene.eye.fov = 60.0;
     let mut model = Model { name: "tris".into(), ..Model::default() };
     let side = (n as f64).cbrt().ceil() as usize;
-    let mut cells: Vec<(usize, usize, usize)> = (0..side.pow(3)).map(|k| (k % side, k / side % side, k / side / side)).collect();
+    let mut cells: Vec<(usize, usize, usize)> =
+        (0..side.pow(3)).map(|k| (k % side, k / side % side, k / side / side)).collect();
     // Shuffle the cells so the order in the database says nothing.
     for i in (1..cells.len()).rev() {
         cells.swap(i, (rng.next_u64() % (i as u64 + 1)) as usize);
@@ -39,7 +40,11 @@ pub fn random_scene(seed: u64, n: usize, screen: Screen) -> Scene {
     for &(i, j, k) in cells.iter().take(n) {
         let cell = 4.0;
         // x across, y ahead (north), z up.
-        let c = DVec3::new((i as f64 - side as f64 / 2.0) * cell, 10.0 + j as f64 * cell, (k as f64 - side as f64 / 2.0) * cell);
+        let c = DVec3::new(
+            (i as f64 - side as f64 / 2.0) * cell,
+            10.0 + j as f64 * cell,
+            (k as f64 - side as f64 / 2.0) * cell,
+        );
         let t = triangle_in_cell(&mut rng, c, cell * 0.45);
         let m = scene.materials.len() as u32;
         scene.materials.push(Material::plain(&format!("m{m}"), Vec3::new(rng.range(0.1, 1.0) as f32, 0.5, 0.5)));
@@ -107,7 +112,10 @@ fn check_priority(frame: &FrameList) -> usize {
             let zi = frame.polygons[i].inv_z.eval(x, y);
             let zj = frame.polygons[j].inv_z.eval(x, y);
             // 1/Z: larger is nearer. Allow f32 rounding where the two are equal.
-            assert!(zi >= zj * (1.0 - 1e-4), "polygon {i} (1/Z {zi}) is behind polygon {j} (1/Z {zj}) at ({x}, {y}) but comes first");
+            assert!(
+                zi >= zj * (1.0 - 1e-4),
+                "polygon {i} (1/Z {zi}) is behind polygon {j} (1/Z {zj}) at ({x}, {y}) but comes first"
+            );
         }
     }
     pairs
@@ -138,7 +146,8 @@ fn priority_holds_for_every_clipper_and_for_eyes_inside_the_scene() {
     for clipper in [Clipper::Automaton, Clipper::AllBorders, Clipper::Reference] {
         for _ in 0..8 {
             let mut eye = db.scene.eye;
-            eye.position = Vec3::new(rng.range(-10.0, 10.0) as f32, rng.range(0.0, 25.0) as f32, rng.range(-10.0, 10.0) as f32);
+            eye.position =
+                Vec3::new(rng.range(-10.0, 10.0) as f32, rng.range(0.0, 25.0) as f32, rng.range(-10.0, 10.0) as f32);
             eye.heading = rng.range(0.0, 360.0) as f32;
             eye.pitch = rng.range(-60.0, 60.0) as f32;
             eye.roll = rng.range(-30.0, 30.0) as f32;
@@ -153,7 +162,8 @@ fn priority_holds_for_every_clipper_and_for_eyes_inside_the_scene() {
                     assert!(v.x >= 0.0 && v.y >= 0.0 && v.x <= 200.0 && v.y <= 150.0, "{v} outside");
                 }
                 let n = o.len();
-                let s: Vec<f64> = (0..n).map(|k| (o[(k + 1) % n] - o[k]).perp_dot(o[(k + 2) % n] - o[(k + 1) % n])).collect();
+                let s: Vec<f64> =
+                    (0..n).map(|k| (o[(k + 1) % n] - o[k]).perp_dot(o[(k + 2) % n] - o[(k + 1) % n])).collect();
                 assert!(s.iter().all(|&t| t > 0.0) || s.iter().all(|&t| t < 0.0), "not strictly convex: {o:?}");
             }
         }
@@ -161,7 +171,8 @@ fn priority_holds_for_every_clipper_and_for_eyes_inside_the_scene() {
 }
 
 fn face_of(points: &[DVec3], instance: u32, face: u32) -> BspFace {
-    let vertices: Vec<BspVertex> = points.iter().map(|&p| BspVertex { position: p, normal: Vec3::Z, intensity: 1.0 }).collect();
+    let vertices: Vec<BspVertex> =
+        points.iter().map(|&p| BspVertex { position: p, normal: Vec3::Z, intensity: 1.0 }).collect();
     let n = (points[1] - points[0]).cross(points[2] - points[0]).normalize();
     BspFace { plane: Plane { normal: n, d: n.dot(points[0]) }, vertices, material: 0, instance, face }
 }
@@ -217,7 +228,11 @@ fn moving_models_are_ordered_as_wholes() {
     let bm = scene.add_model(boxm);
     scene.place(near, Mat4::IDENTITY);
     scene.place(far, Mat4::IDENTITY);
-    scene.instances.push(Instance { model: bm, transform: Mat4::from_translation(Vec3::new(0.5, 20.0, -1.0)), moving: true });
+    scene.instances.push(Instance {
+        model: bm,
+        transform: Mat4::from_translation(Vec3::new(0.5, 20.0, -1.0)),
+        moving: true,
+    });
     scene.validate().unwrap();
     let db = Database::new(scene);
     let (frame, _) = gp::frame_of_scene(&db, &GpConfig::default());

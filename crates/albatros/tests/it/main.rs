@@ -2,6 +2,7 @@
 
 mod canonical;
 mod clip;
+mod golden;
 mod gp;
 mod load;
 mod model;

@@ -131,7 +131,10 @@ fn upper_level_masks_never_slow_a_scene_down() {
         let hw = HwConfig::default();
         let i = Timing::estimate(&hw, &ex.counters(MaskLevels::mode_i(l)));
         let iv = Timing::estimate(&hw, &ex.counters(MaskLevels::mode_iv(l)));
-        println!("{name}: mode I {:.2} ms ({}), mode IV {:.2} ms ({})", i.frame_ms, i.bottleneck, iv.frame_ms, iv.bottleneck);
+        println!(
+            "{name}: mode I {:.2} ms ({}), mode IV {:.2} ms ({})",
+            i.frame_ms, i.bottleneck, iv.frame_ms, iv.bottleneck
+        );
         assert!(iv.frame_ms <= i.frame_ms);
     }
 }
@@ -263,7 +266,8 @@ fn the_cell_recorder_agrees_with_the_counters() {
         }
         for (k, (s, c)) in seen.iter().zip(&vp.counters.levels).enumerate() {
             let want = (c.tested, c.inside, c.crossed, c.outside, c.masked, c.polygons_masked, c.starts);
-            let got = (s.tested, s.inside, s.crossed, s.outside, s.masked, s.polygons_masked, s.starts + s.polygons_masked);
+            let got =
+                (s.tested, s.inside, s.crossed, s.outside, s.masked, s.polygons_masked, s.starts + s.polygons_masked);
             assert_eq!(got, want, "level {k}");
         }
     }
@@ -415,7 +419,8 @@ fn the_stats_json_schema_is_pinned() {
     assert!(extra.is_empty() && missing.is_empty(), "schema changed: new keys {extra:?}, gone {missing:?}");
     assert_eq!(json["schema"], experiment::SCHEMA);
     assert_eq!(json["runs"][0]["mask_levels"], serde_json::json!([1, 2, 3, 4, 5, 6, 7]));
-    let units: Vec<_> = json["runs"][0]["timing"]["stages"].as_array().unwrap().iter().map(|s| s["unit"].clone()).collect();
+    let units: Vec<_> =
+        json["runs"][0]["timing"]["stages"].as_array().unwrap().iter().map(|s| s["unit"].clone()).collect();
     assert_eq!(units.iter().filter(|u| *u == "gq").count(), 7);
     assert_eq!(&units[7..], &[serde_json::json!("spp"), serde_json::json!("cc"), serde_json::json!("vb")]);
 }

@@ -246,7 +246,10 @@ fn area_table_is_area_faithful() {
 }
 
 /// Renders a scene through GP and VP with the given configuration.
-pub fn render_scene(scene: &albatros::db::Scene, config: VpConfig) -> (albatros::vp::vb::Image, albatros::model::stats::Counters) {
+pub fn render_scene(
+    scene: &albatros::db::Scene,
+    config: VpConfig,
+) -> (albatros::vp::vb::Image, albatros::model::stats::Counters) {
     let db = albatros::gp::Database::new(scene.clone());
     let (frame, _) = albatros::gp::frame_of_scene(&db, &albatros::gp::GpConfig::default());
     let mut vp = VideoProcessor::new(frame.width, frame.height, config);
@@ -275,12 +278,20 @@ fn masks_change_work_never_the_image() {
         let mut first: Option<albatros::vp::vb::Image> = None;
         let mut prev_cells = u64::MAX;
         for (mode, masks) in modes {
-            let mut vp = VideoProcessor::new(frame.width, frame.height, VpConfig { masks, stats: true, ..VpConfig::default() });
+            let mut vp =
+                VideoProcessor::new(frame.width, frame.height, VpConfig { masks, stats: true, ..VpConfig::default() });
             let image = vp.render(&frame);
             let c = &vp.counters;
             let cells = c.cells_tested();
-            println!("{name} mode {mode}: cells tested {cells}, fragments {}, polygons dropped whole {}", c.spp.fragments, c.levels.iter().map(|l| l.polygons_masked).sum::<u64>());
-            assert!(cells <= prev_cells, "{name}: mode {mode} tests more cells ({cells}) than the mode before ({prev_cells})");
+            println!(
+                "{name} mode {mode}: cells tested {cells}, fragments {}, polygons dropped whole {}",
+                c.spp.fragments,
+                c.levels.iter().map(|l| l.polygons_masked).sum::<u64>()
+            );
+            assert!(
+                cells <= prev_cells,
+                "{name}: mode {mode} tests more cells ({cells}) than the mode before ({prev_cells})"
+            );
             prev_cells = cells;
             match &first {
                 None => first = Some(image),
@@ -316,7 +327,8 @@ fn reference_ownership(frame: &FrameList) -> Vec<u32> {
     let mut owner = vec![u32::MAX; w * h * 16];
     let mut depth = vec![f32::MIN; w * h * 16];
     for (pi, p) in frame.polygons.iter().enumerate() {
-        let poly: Vec<DVec2> = frame.vertices_of(p).iter().map(|v| DVec2::new(f64::from(v.x), f64::from(v.y))).collect();
+        let poly: Vec<DVec2> =
+            frame.vertices_of(p).iter().map(|v| DVec2::new(f64::from(v.x), f64::from(v.y))).collect();
         let orient = (0..poly.len()).map(|i| poly[i].perp_dot(poly[(i + 1) % poly.len()])).sum::<f64>().signum();
         let x0 = poly.iter().map(|v| v.x).fold(f64::MAX, f64::min).floor().max(0.0) as usize;
         let x1 = (poly.iter().map(|v| v.x).fold(f64::MIN, f64::max).ceil() as usize).min(w);
@@ -325,8 +337,12 @@ fn reference_ownership(frame: &FrameList) -> Vec<u32> {
         for y in y0..y1 {
             for x in x0..x1 {
                 for sub in 0..16 {
-                    let s = DVec2::new(x as f64 + ((sub & 3) as f64 + 0.5) / 4.0, y as f64 + ((sub >> 2) as f64 + 0.5) / 4.0);
-                    let inside = (0..poly.len()).all(|i| (poly[(i + 1) % poly.len()] - poly[i]).perp_dot(s - poly[i]) * orient > 0.0);
+                    let s = DVec2::new(
+                        x as f64 + ((sub & 3) as f64 + 0.5) / 4.0,
+                        y as f64 + ((sub >> 2) as f64 + 0.5) / 4.0,
+                    );
+                    let inside = (0..poly.len())
+                        .all(|i| (poly[(i + 1) % poly.len()] - poly[i]).perp_dot(s - poly[i]) * orient > 0.0);
                     if inside {
                         let z = p.inv_z.eval(s.x as f32, s.y as f32);
                         let k = (y * w + x) * 16 + sub;
@@ -357,7 +373,11 @@ fn compare_with_reference(mode: SppMode, tolerance: f64) -> (usize, usize, f64) 
         let got = vp.ownership(&frame);
         let want = reference_ownership(&frame);
         let outline = |i: u32| -> Vec<DVec2> {
-            frame.vertices_of(&frame.polygons[i as usize]).iter().map(|v| DVec2::new(f64::from(v.x), f64::from(v.y))).collect()
+            frame
+                .vertices_of(&frame.polygons[i as usize])
+                .iter()
+                .map(|v| DVec2::new(f64::from(v.x), f64::from(v.y)))
+                .collect()
         };
         // Pieces of one face split by the BSP are one surface.
         let source = |i: u32| if i == u32::MAX { None } else { Some(frame.polygons[i as usize].source) };
@@ -372,7 +392,11 @@ fn compare_with_reference(mode: SppMode, tolerance: f64) -> (usize, usize, f64) 
                 (pixel % screen.width as usize) as f64 + ((sub & 3) as f64 + 0.5) / 4.0,
                 (pixel / screen.width as usize) as f64 + ((sub >> 2) as f64 + 0.5) / 4.0,
             );
-            let d = [g, r].iter().filter(|&&i| i != u32::MAX).map(|&i| edge_distance(&outline(i), s)).fold(f64::MAX, f64::min);
+            let d = [g, r]
+                .iter()
+                .filter(|&&i| i != u32::MAX)
+                .map(|&i| edge_distance(&outline(i), s))
+                .fold(f64::MAX, f64::min);
             worst = worst.max(d);
             assert!(d <= tolerance, "{mode:?}: sample {s} owned by {g} (reference {r}) is {d} px from every edge");
         }
@@ -404,8 +428,11 @@ fn same_bytes_whatever_the_matrix_size_or_thread_count() {
         let mut single = VideoProcessor::new(200, 150, VpConfig { stats: true, ..VpConfig::default() });
         single.set_textures(maps.clone());
         let want = single.render(&frame);
-        for (p, q, tile, threads) in [(2, 1, 16, 2), (1, 2, 4, 2), (2, 2, 1, 2), (3, 2, 8, 4), (4, 4, 64, 3), (2, 2, 256, 1)] {
-            let mut m = Matrix::new(200, 150, VpConfig { stats: true, ..VpConfig::default() }, p, q, tile, threads).unwrap();
+        for (p, q, tile, threads) in
+            [(2, 1, 16, 2), (1, 2, 4, 2), (2, 2, 1, 2), (3, 2, 8, 4), (4, 4, 64, 3), (2, 2, 256, 1)]
+        {
+            let mut m =
+                Matrix::new(200, 150, VpConfig { stats: true, ..VpConfig::default() }, p, q, tile, threads).unwrap();
             m.set_textures(maps.clone());
             let got = m.render(&frame);
             assert!(got == want, "{name}: matrix {p}x{q}, tiles of {tile}, {threads} threads changed the image");
