@@ -110,9 +110,19 @@ struct BenchArgs {
 struct DumpArgs {
     #[command(flatten)]
     scene: SceneArgs,
-    /// Output file (standard output if absent).
+    /// Output file (standard output if absent; required for `triangles`).
     #[arg(short, long)]
     output: Option<PathBuf>,
+    /// `json`: the frame list; `triangles`: the frame's triangles in clip space in
+    /// the SGSC binary format, for a peer renderer (bench/peers/README.md).
+    #[arg(long, value_enum, default_value_t = DumpFormat::Json)]
+    format: DumpFormat,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum DumpFormat {
+    Json,
+    Triangles,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -255,6 +265,14 @@ fn dump(args: DumpArgs) -> Result<()> {
     let scene = load_scene(&args.scene)?;
     let db = Database::new(scene);
     let (frame, _) = gp::frame_of_scene(&db, &gp_config(&args.scene));
+    if let DumpFormat::Triangles = args.format {
+        let Some(path) = args.output else { bail!("--format triangles writes binary: give the file with -o") };
+        let file = std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
+        let mut w = std::io::BufWriter::new(file);
+        albatros::peer::write_triangles(&frame, &mut w).with_context(|| format!("writing {}", path.display()))?;
+        std::io::Write::flush(&mut w).with_context(|| format!("writing {}", path.display()))?;
+        return Ok(());
+    }
     let json = serde_json::to_string_pretty(&albatros::frame::dump::FrameDump::new(&frame))?;
     match args.output {
         Some(path) => std::fs::write(&path, json).with_context(|| format!("writing {}", path.display()))?,

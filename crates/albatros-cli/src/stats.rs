@@ -19,7 +19,6 @@ use albatros::model::experiment::{self, Experiment, ModeRun, Report};
 use albatros::model::timing::HwConfig;
 use albatros::vp::gq::{CellProcessors, MaskLevels};
 use albatros::vp::texture::TextureMaps;
-use albatros::vp::VideoProcessor;
 
 pub mod plot;
 
@@ -125,23 +124,23 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 /// Median render times (ms) of `n` renders with counting off and `n` with it on,
-/// interleaved so that both see the same machine state.
+/// alternating on one video processor so that both see the same memory and machine
+/// state.
 fn overhead(ex: &Experiment, masks: MaskLevels, n: usize) -> (f64, f64) {
-    let mut vp_off = ex.video_processor(masks);
-    vp_off.config.stats = false;
-    let mut vp_on = ex.video_processor(masks);
-    let (mut off, mut on) = (Vec::with_capacity(n), Vec::with_capacity(n));
-    let time = |vp: &mut VideoProcessor| {
+    let mut vp = ex.video_processor(masks);
+    let mut time = |stats: bool| {
+        vp.config.stats = stats;
         let t = Instant::now();
         vp.render_frame(ex.frame);
         t.elapsed().as_secs_f64() * 1e3
     };
     // One warm-up of each.
-    time(&mut vp_off);
-    time(&mut vp_on);
+    time(false);
+    time(true);
+    let (mut off, mut on) = (Vec::with_capacity(n), Vec::with_capacity(n));
     for _ in 0..n {
-        off.push(time(&mut vp_off));
-        on.push(time(&mut vp_on));
+        off.push(time(false));
+        on.push(time(true));
     }
     (median(off), median(on))
 }

@@ -424,3 +424,38 @@ fn the_stats_json_schema_is_pinned() {
     assert_eq!(units.iter().filter(|u| *u == "gq").count(), 7);
     assert_eq!(&units[7..], &[serde_json::json!("spp"), serde_json::json!("cc"), serde_json::json!("vb")]);
 }
+
+#[test]
+fn cell_counting_helpers_agree_with_pixel_by_pixel_counting() {
+    use albatros::model::stats::{visible_pixels, CHANNEL_PIXELS};
+    use albatros::vp::cc::channel;
+    // The channel masks are the CC's dealing.
+    for (ch, bits) in CHANNEL_PIXELS.iter().enumerate() {
+        let want: u16 = (0..16).filter(|&i| channel(i) == ch).map(|i| 1u16 << i).sum();
+        assert_eq!(*bits, want, "channel {ch}");
+    }
+    let mut seed = 0x9E37_79B9_7F4A_7C15u64;
+    for _ in 0..1000 {
+        let mut sets = [0u16; 16];
+        for s in &mut sets {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            *s = if seed & 3 == 0 { 0 } else { (seed >> 8) as u16 };
+        }
+        let (mut a, mut b) = (Counters::new(1), Counters::new(1));
+        a.count_cc_cell(visible_pixels(&sets), true);
+        a.count_spp_fragment(&sets, 12);
+        for (i, &s) in sets.iter().enumerate() {
+            if s != 0 {
+                b.color.pixels_per_channel[channel(i)] += 1;
+                b.color.textured += 1;
+                b.spp.pixels_visible += 1;
+                b.spp.subpixels_set += u64::from(s.count_ones());
+            }
+        }
+        b.spp.fragments = 1;
+        b.spp.pixels_touched = 12;
+        assert_eq!(a, b);
+    }
+}
