@@ -95,7 +95,6 @@ impl Canvas {
             }
         }
     }
-
 }
 
 /// Draws the recorded cells of a frame of root level `root_level` over `image`.

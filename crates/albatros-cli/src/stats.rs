@@ -180,7 +180,17 @@ pub fn table(r: &Report) -> String {
     let _ = writeln!(
         o,
         "{}: {}x{}, root level {}, {} polygons; hw \"{}\": {} GQ, {} SPP, {} CC, {} VB at {} MHz",
-        r.scene, r.width, r.height, r.root_level, n(r.polygons), hw.name, u.gq, u.spp, u.cc, u.vb, hw.clock_mhz
+        r.scene,
+        r.width,
+        r.height,
+        r.root_level,
+        n(r.polygons),
+        hw.name,
+        u.gq,
+        u.spp,
+        u.cc,
+        u.vb,
+        hw.clock_mhz
     );
     if let Some(g) = &r.gp {
         let _ = writeln!(

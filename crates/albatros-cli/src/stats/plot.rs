@@ -223,7 +223,10 @@ fn stage_times(path: &Path, r: &Report) -> Result<()> {
             chart
                 .draw_series(bars)
                 .map_err(pe)?
-                .label(format!("mode {}: {:.1} ms, bottleneck {}", run.mode, run.timing.frame_ms, run.timing.bottleneck))
+                .label(format!(
+                    "mode {}: {:.1} ms, bottleneck {}",
+                    run.mode, run.timing.frame_ms, run.timing.bottleneck
+                ))
                 .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 15, y + 5)], color.filled()));
         }
         let budget = r.hw.half_frame_ms;
@@ -296,10 +299,7 @@ fn fig4_chart(path: &Path, scenes: &[SceneTimes], hw: &HwConfig) -> Result<()> {
     png(path, |root| {
         let mut chart = ChartBuilder::on(root)
             .caption(
-                format!(
-                    "P1 fig. 4: estimated time against the mask levels in use ({}, {} MHz)",
-                    hw.name, hw.clock_mhz
-                ),
+                format!("P1 fig. 4: estimated time against the mask levels in use ({}, {} MHz)", hw.name, hw.clock_mhz),
                 (FAMILY, CAPTION_SIZE),
             )
             .margin(MARGIN)
