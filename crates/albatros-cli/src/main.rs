@@ -10,6 +10,9 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand, ValueEnum};
 
+mod cells;
+mod stats;
+
 use albatros::db::{builtin, load, Scene, Screen};
 use albatros::gp::{self, Clipper, Database, GpConfig, GpCounters};
 use albatros::matrix::Matrix;
@@ -36,6 +39,9 @@ enum Command {
     Dump(DumpArgs),
     /// Print counts: models, faces, BSP, and what the GP does with them.
     Info(SceneArgs),
+    /// The architecture model: per-unit counters, the estimated time of each stage on
+    /// a hardware configuration, the bottleneck; P1 fig. 4 with `--masks all-modes`.
+    Stats(stats::StatsArgs),
     /// Time frames: median and spread after warm-up, frames/s, and each stage's time.
     Bench(BenchArgs),
     /// Write the VP's ROM tables (GQ CI/CRI table, SPP tables) as $readmemh hex files.
@@ -66,6 +72,9 @@ struct RenderArgs {
     /// Output PNG.
     #[arg(short, long, default_value = "out.png")]
     output: PathBuf,
+    /// Also write the cell subdivision drawn over the image to this PNG.
+    #[arg(long, value_name = "PNG")]
+    cells: Option<PathBuf>,
     /// Mask memory levels in use: I, II, III, IV (P1 fig. 4), none, all, or levels
     /// like "5-7" or "3,5,7".
     #[arg(long, default_value = "IV")]
@@ -220,6 +229,7 @@ fn main() -> Result<()> {
         Command::Dump(args) => dump(args),
         Command::Info(args) => info(args),
         Command::Bench(args) => bench(args),
+        Command::Stats(args) => stats::run(args),
         Command::Tables { out } => tables(&out),
     }
 }
@@ -248,7 +258,14 @@ fn render(args: RenderArgs) -> Result<()> {
     let mut vp = VideoProcessor::new(screen.width, screen.height, config);
     // Texture files were resolved against the scene file's folder by the loader.
     vp.set_textures(TextureMaps::from_scene(&db.scene, Path::new(""))?);
-    let image = vp.render(&frame);
+    let image = match &args.cells {
+        Some(path) => {
+            let (image, overlay) = cells::render_with_cells(&mut vp, &frame);
+            std::fs::write(path, overlay.encode_png()).with_context(|| format!("writing {}", path.display()))?;
+            image
+        }
+        None => vp.render(&frame),
+    };
     std::fs::write(&args.output, image.encode_png()).with_context(|| format!("writing {}", args.output.display()))?;
     println!(
         "{}: {}x{}, {} polygons -> {}",

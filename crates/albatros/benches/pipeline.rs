@@ -32,7 +32,9 @@ fn stages(c: &mut Criterion) {
         m.set_textures(maps);
         let mut g = c.benchmark_group(name);
         g.sample_size(10);
-        g.bench_function("gp", |b| b.iter(|| gp::frame(&db, &db.scene.eye, SCREEN, &GpConfig::default(), &mut counters)));
+        g.bench_function("gp", |b| {
+            b.iter(|| gp::frame(&db, &db.scene.eye, SCREEN, &GpConfig::default(), &mut counters))
+        });
         g.bench_function("raster", |b| b.iter(|| vp.raster(&frame)));
         g.bench_function("vp", |b| b.iter(|| vp.render_frame(&frame)));
         vp.render_frame(&frame);

@@ -95,9 +95,6 @@ impl<'a> ColorComputers<'a> {
                     let v = (v_q + t.v.a * dx + t.v.b * dy) * z;
                     let footprint = self.footprint_scale * z * z * t.par;
                     let m = map.sample(u, v, footprint);
-                    if STATS {
-                        counters.color.textured += 1;
-                    }
                     t.color1 * m + t.color2 * (1.0 - m)
                 }
                 None => poly.color,
@@ -105,9 +102,9 @@ impl<'a> ColorComputers<'a> {
             let base = c0 * intensity;
             let f = (-z * self.inv_visibility).exp();
             *c = base * f + self.fog_color * (1.0 - f);
-            if STATS {
-                counters.color.pixels_per_channel[channel(i)] += 1;
-            }
+        }
+        if STATS {
+            counters.count_cc_cell(crate::model::stats::visible_pixels(&vis.sets), texture.is_some());
         }
     }
 }

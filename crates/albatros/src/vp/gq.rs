@@ -385,8 +385,19 @@ impl CellProcessors {
                 Tg::Horizontal => oy,
             };
             let vm = (a.v1.0 + a.v2.0) >> 1;
+            // Two readings of the high bits: `floor((V - origin) / half)` decides
+            // "the line lies at or beyond a child's far border" exactly, and the same
+            // of V one LSB lower decides "at or before its near border" exactly. A
+            // line lying on a cell border (the screen's edges after clipping, grid
+            // geometry) then leaves the cell on its side IN or OUT instead of
+            // crossed all the way down to the SPPs.
             let b = |v: i64| (((v - origin.0) >> half_shift).clamp(-1, 2)) as i32;
-            let (ci, cri) = rom.lookup(GqRom::address(e.tg, e.lr, b(a.v1.0), b(vm), b(a.v2.0)));
+            let b_low = |v: i64| (((v - origin.0 - 1) >> half_shift).clamp(-1, 2)) as i32;
+            let at_or_after = rom.lookup(GqRom::address(e.tg, e.lr, b(a.v1.0), b(vm), b(a.v2.0)));
+            let at_or_before = rom.lookup(GqRom::address(e.tg, e.lr, b_low(a.v1.0), b_low(vm), b_low(a.v2.0)));
+            // LR = 1 (polygon on the greater side): IN is "line before the child",
+            // OUT is "line after it"; LR = 0 the other way round.
+            let (ci, cri) = if e.lr { (at_or_before.0, at_or_after.1) } else { (at_or_after.0, at_or_before.1) };
             codes.push((ci, cri));
             ci_all &= ci;
             cri_all &= cri;

@@ -220,12 +220,8 @@ impl SubpixelProcessors {
             sets[i] = visible;
         }
         if STATS {
-            let s = &mut counters.spp;
-            s.fragments += 1;
             let on_screen = (self.width - frag.px).min(CELL_SIDE) * (self.height - frag.py).min(CELL_SIDE);
-            s.pixels_touched += u64::from(on_screen);
-            s.pixels_visible += sets.iter().filter(|&&v| v != 0).count() as u64;
-            s.subpixels_set += sets.iter().map(|v| u64::from(v.count_ones())).sum::<u64>();
+            counters.count_spp_fragment(&sets, on_screen);
         }
         Visible { px: frag.px, py: frag.py, sets, first }
     }
