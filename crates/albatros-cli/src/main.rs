@@ -219,6 +219,7 @@ fn gp_config(args: &SceneArgs) -> GpConfig {
             ClipperArg::AllBorders => Clipper::AllBorders,
             ClipperArg::Reference => Clipper::Reference,
         },
+        threads: 1,
     }
 }
 
@@ -373,9 +374,10 @@ fn bench(args: BenchArgs) -> Result<()> {
         matrix.set_textures(maps);
         let (mut total, mut gp_t, mut raster_t, mut color_t, mut readout_t) = (vec![], vec![], vec![], vec![], vec![]);
         let mut counters = GpCounters::default();
+        let gp_cfg = GpConfig { threads: args.threads, ..GpConfig::default() };
         for f in 0..args.warmup + args.frames {
             let t0 = std::time::Instant::now();
-            let frame = gp::frame(&db, &db.scene.eye, screen, &GpConfig::default(), &mut counters);
+            let frame = gp::frame(&db, &db.scene.eye, screen, &gp_cfg, &mut counters);
             let t1 = std::time::Instant::now();
             // One thread: the raster stages alone, then the whole VP (colour and VB by
             // difference). More: the matrix, all stages together.

@@ -138,6 +138,19 @@ impl FrameList {
         &self.edges[p.edges.start as usize..p.edges.end as usize]
     }
 
+    /// Appends another frame list's polygons (for the same screen) after this one's,
+    /// in order.
+    pub fn append(&mut self, other: &FrameList) {
+        let (v0, e0) = (self.vertices.len() as u32, self.edges.len() as u32);
+        self.vertices.extend_from_slice(&other.vertices);
+        self.edges.extend_from_slice(&other.edges);
+        self.polygons.extend(other.polygons.iter().map(|p| FramePolygon {
+            vertices: p.vertices.start + v0..p.vertices.end + v0,
+            edges: p.edges.start + e0..p.edges.end + e0,
+            ..p.clone()
+        }));
+    }
+
     /// Empties the list for reuse, keeping its allocations.
     pub fn clear(&mut self) {
         self.polygons.clear();

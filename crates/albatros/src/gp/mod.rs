@@ -24,6 +24,7 @@ pub mod lights;
 pub mod setup;
 
 use glam::{DMat3, DMat4, DVec2, DVec3};
+use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::db::bsp::{Bsp, BspFace, BspVertex, Plane, Slot, Visit};
@@ -74,6 +75,26 @@ pub struct GpCounters {
     pub lights: u64,
     /// Polygons in the frame list.
     pub polygons_out: u64,
+}
+
+impl GpCounters {
+    /// Adds another worker's counts into these.
+    pub fn add(&mut self, o: &GpCounters) {
+        self.instances += o.instances;
+        self.instances_rejected += o.instances_rejected;
+        for k in 0..3 {
+            self.instance_class[k] += o.instance_class[k];
+            self.face_class[k] += o.face_class[k];
+        }
+        self.faces_in += o.faces_in;
+        self.backfacing += o.backfacing;
+        self.outside += o.outside;
+        self.near_clipped += o.near_clipped;
+        self.window_clipped += o.window_clipped;
+        self.degenerate += o.degenerate;
+        self.lights += o.lights;
+        self.polygons_out += o.polygons_out;
+    }
 }
 
 /// A moving model: its own BSP in model coordinates.
@@ -290,10 +311,18 @@ impl View {
 }
 
 /// Options of the GP.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct GpConfig {
     /// The window clipper.
     pub clipper: Clipper,
+    /// Geometry processors working in parallel (threads); 1 for one.
+    pub threads: usize,
+}
+
+impl Default for GpConfig {
+    fn default() -> Self {
+        Self { clipper: Clipper::default(), threads: 1 }
+    }
 }
 
 /// Scratch buffers reused from face to face (no allocation per face).
@@ -314,15 +343,13 @@ enum Guest {
     Light(usize),
 }
 
-/// The GP at work on one frame.
-struct FrameBuilder<'a> {
+/// What the GP knows of one frame before it processes faces: the view, the
+/// instances' classes and matrices, the guests' places. Shared, read-only, by the
+/// workers that process stretches of the priority order in parallel.
+struct Shared<'a> {
     db: &'a Database,
     view: View,
     config: GpConfig,
-    setup: Setup,
-    out: FrameList,
-    counters: GpCounters,
-    scratch: Scratch,
     /// Per instance: P4 class by bounding sphere (`None`: rejected).
     class: Vec<Option<u8>>,
     /// Per instance: model-to-eye matrix.
@@ -330,39 +357,85 @@ struct FrameBuilder<'a> {
     /// Guests sorted by (node, slot, distance from the eye).
     guests: Vec<(u32, u8, f64, Guest)>,
     sun_world: DVec3,
+    /// Instance counters (counted once, here).
+    counters: GpCounters,
 }
+
+/// One geometry processor at work on a stretch of the frame's priority order.
+struct FrameBuilder<'a> {
+    f: &'a Shared<'a>,
+    setup: Setup,
+    out: FrameList,
+    counters: GpCounters,
+    scratch: Scratch,
+}
+
+/// Visits per stretch when the GP runs on several threads (small enough to balance
+/// the load, large enough that stitching the frame lists costs nothing).
+const VISITS_PER_STRETCH: usize = 2048;
 
 /// Builds the frame list of one frame: the GP's whole job.
+///
+/// With `config.threads > 1` the priority order is cut into stretches that several
+/// geometry processors set up in parallel (P5's several GPs); their frame lists are
+/// joined in order, so the result is the same, byte for byte.
 pub fn frame(db: &Database, eye: &Eye, screen: Screen, config: &GpConfig, counters: &mut GpCounters) -> FrameList {
     let view = View::new(eye, screen);
-    let setup = Setup::new(&db.scene, &view);
-    let out = setup.frame_list();
-    let mut b = FrameBuilder {
-        db,
-        view,
-        config: *config,
-        setup,
-        out,
-        counters: GpCounters::default(),
-        scratch: Scratch::default(),
-        class: Vec::with_capacity(db.instances.len()),
-        model_to_eye: Vec::with_capacity(db.instances.len()),
-        guests: Vec::new(),
-        sun_world: db.scene.env.sun.as_dvec3().normalize_or_zero(),
+    let shared = Shared::new(db, view, *config);
+    // The priority order: the BSP's traversal.
+    let mut order: Vec<Visit> = Vec::with_capacity(db.bsp.faces.len() + shared.guests.len() + 1);
+    db.bsp.traverse(view.position, |step| order.push(step));
+    let run = |visits: &[Visit]| {
+        let setup = Setup::new(&db.scene, &view);
+        let out = setup.frame_list();
+        let mut b = FrameBuilder { f: &shared, setup, out, counters: GpCounters::default(), scratch: Scratch::default() };
+        for &step in visits {
+            match step {
+                Visit::Face(f) => b.face(&db.bsp.faces[f as usize], view.world_to_eye, view.position, shared.sun_world),
+                Visit::Guests(n, s) => b.emit_guests(n, s),
+            }
+        }
+        (b.out, b.counters)
     };
-    b.instances();
-    b.guests();
-    let sun = b.sun_world;
-    db.bsp.traverse(view.position, |step| match step {
-        Visit::Face(f) => b.face(&db.bsp.faces[f as usize], view.world_to_eye, view.position, sun),
-        Visit::Guests(n, s) => b.emit_guests(n, s),
-    });
-    b.counters.polygons_out = b.out.polygons.len() as u64;
-    *counters = b.counters;
-    b.out
+    let (mut out, mut c) = if config.threads > 1 && order.len() > VISITS_PER_STRETCH {
+        let parts: Vec<(FrameList, GpCounters)> = match rayon::ThreadPoolBuilder::new().num_threads(config.threads).build() {
+            Ok(pool) => pool.install(|| order.par_chunks(VISITS_PER_STRETCH).map(run).collect()),
+            Err(_) => order.chunks(VISITS_PER_STRETCH).map(run).collect(),
+        };
+        let mut parts = parts.into_iter();
+        let (mut out, mut c) = parts.next().expect("at least one stretch");
+        for (o, k) in parts {
+            out.append(&o);
+            c.add(&k);
+        }
+        (out, c)
+    } else {
+        run(&order)
+    };
+    c.add(&shared.counters);
+    c.polygons_out = out.polygons.len() as u64;
+    out.polygons.shrink_to_fit();
+    *counters = c;
+    out
 }
 
-impl FrameBuilder<'_> {
+impl<'a> Shared<'a> {
+    fn new(db: &'a Database, view: View, config: GpConfig) -> Self {
+        let mut s = Shared {
+            db,
+            view,
+            config,
+            class: Vec::with_capacity(db.instances.len()),
+            model_to_eye: Vec::with_capacity(db.instances.len()),
+            guests: Vec::new(),
+            sun_world: db.scene.env.sun.as_dvec3().normalize_or_zero(),
+            counters: GpCounters::default(),
+        };
+        s.instances();
+        s.guests();
+        s
+    }
+
     /// Instance transforms, rejection and P4 classes by bounding sphere.
     fn instances(&mut self) {
         for info in &self.db.instances {
@@ -396,20 +469,22 @@ impl FrameBuilder<'_> {
         }
         self.guests.sort_by(|a, b| (a.0, a.1).cmp(&(b.0, b.1)).then(a.2.total_cmp(&b.2)));
     }
+}
 
+impl FrameBuilder<'_> {
     /// Emits the guests attached at `(node, slot)`, nearest first.
     fn emit_guests(&mut self, node: u32, slot: Slot) {
         let key = (node, slot as u8);
-        let start = self.guests.partition_point(|g| (g.0, g.1) < key);
-        let end = start + self.guests[start..].iter().take_while(|g| (g.0, g.1) == key).count();
+        let start = self.f.guests.partition_point(|g| (g.0, g.1) < key);
+        let end = start + self.f.guests[start..].iter().take_while(|g| (g.0, g.1) == key).count();
         for gi in start..end {
-            match self.guests[gi].3 {
+            match self.f.guests[gi].3 {
                 Guest::Moving(mi) => self.moving(mi),
                 Guest::Light(li) => {
                     if lights::add_light_point(
-                        &self.db.scene,
+                        &self.f.db.scene,
                         li,
-                        &self.view,
+                        &self.f.view,
                         &mut self.setup,
                         &mut self.out,
                         &mut self.scratch.window,
@@ -422,14 +497,14 @@ impl FrameBuilder<'_> {
     }
 
     fn moving(&mut self, mi: usize) {
-        let db = self.db;
+        let db = self.f.db;
         let m = &db.moving[mi];
         let inst = m.instance as usize;
-        let to_eye = self.model_to_eye[inst];
+        let to_eye = self.f.model_to_eye[inst];
         let info = &db.instances[inst];
-        let eye_model = info.world_to_model.transform_point3(self.view.position);
+        let eye_model = info.world_to_model.transform_point3(self.f.view.position);
         // P5: the light direction is taken into model coordinates.
-        let sun_model = (DMat3::from_mat4(info.model_to_world).transpose() * self.sun_world).normalize_or_zero();
+        let sun_model = (DMat3::from_mat4(info.model_to_world).transpose() * self.f.sun_world).normalize_or_zero();
         m.bsp.traverse(eye_model, |step| {
             if let Visit::Face(f) = step {
                 self.face(&m.bsp.faces[f as usize], to_eye, eye_model, sun_model);
@@ -440,7 +515,7 @@ impl FrameBuilder<'_> {
     /// Transforms, culls, clips and sets up one face. `to_eye` takes the face's
     /// coordinates to the eye's; `eye_local` is the eye in the face's coordinates.
     fn face(&mut self, face: &BspFace, to_eye: DMat4, eye_local: DVec3, sun: DVec3) {
-        let Some(instance_class) = self.class[face.instance as usize] else { return };
+        let Some(instance_class) = self.f.class[face.instance as usize] else { return };
         let counters = &mut self.counters;
         counters.faces_in += 1;
         // Back-face culling: the eye must be in front of the face's plane.
@@ -448,8 +523,8 @@ impl FrameBuilder<'_> {
             counters.backfacing += 1;
             return;
         }
-        let db = self.db;
-        let view = &self.view;
+        let db = self.f.db;
+        let view = &self.f.view;
         let material = &db.scene.materials[face.material as usize];
         let env = &db.scene.env;
         let scratch = &mut self.scratch;
@@ -503,7 +578,7 @@ impl FrameBuilder<'_> {
         } else {
             counters.window_clipped += 1;
             let win = Window { x0: 0.0, y0: 0.0, x1: f64::from(view.screen.width), y1: f64::from(view.screen.height) };
-            match self.config.clipper {
+            match self.f.config.clipper {
                 Clipper::Automaton => clip::clip_automaton(&scratch.screen, &win, &mut scratch.window),
                 Clipper::AllBorders => clip::clip_all_borders(&scratch.screen, &win, &mut scratch.window),
                 Clipper::Reference => clip::clip_reference(&scratch.screen, &win, &mut scratch.window),
@@ -518,7 +593,7 @@ impl FrameBuilder<'_> {
             &plane_eye,
             &scratch.eye,
             outline,
-            &self.model_to_eye[face.instance as usize],
+            &self.f.model_to_eye[face.instance as usize],
             &mut self.out,
         );
         if !ok {

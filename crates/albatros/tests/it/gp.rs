@@ -152,7 +152,7 @@ fn priority_holds_for_every_clipper_and_for_eyes_inside_the_scene() {
             eye.pitch = rng.range(-60.0, 60.0) as f32;
             eye.roll = rng.range(-30.0, 30.0) as f32;
             let mut counters = gp::GpCounters::default();
-            let frame = gp::frame(&db, &eye, screen, &GpConfig { clipper }, &mut counters);
+            let frame = gp::frame(&db, &eye, screen, &GpConfig { clipper, ..GpConfig::default() }, &mut counters);
             check_priority(&frame);
             // Every polygon is inside the window and convex.
             for p in &frame.polygons {
@@ -279,5 +279,18 @@ fn dump_lists_polygons_in_priority_order() {
         for key in ["color", "material", "inv_z", "intensity"] {
             assert!(!p[key].is_null(), "{key}");
         }
+    }
+}
+
+#[test]
+fn several_geometry_processors_give_the_same_frame_list() {
+    for name in ["default", "terrain", "city"] {
+        let db = Database::new(builtin::scene(name).unwrap());
+        let mut c1 = gp::GpCounters::default();
+        let mut c3 = gp::GpCounters::default();
+        let one = gp::frame(&db, &db.scene.eye, db.scene.screen, &GpConfig::default(), &mut c1);
+        let three = gp::frame(&db, &db.scene.eye, db.scene.screen, &GpConfig { threads: 3, ..GpConfig::default() }, &mut c3);
+        assert!(one == three, "{name}: the frame list depends on the number of GPs");
+        assert_eq!(c1, c3, "{name}: counters");
     }
 }
