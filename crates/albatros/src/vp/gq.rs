@@ -394,7 +394,13 @@ impl CellProcessors {
             let b = |v: i64| (((v - origin.0) >> half_shift).clamp(-1, 2)) as i32;
             let b_low = |v: i64| (((v - origin.0 - 1) >> half_shift).clamp(-1, 2)) as i32;
             let at_or_after = rom.lookup(GqRom::address(e.tg, e.lr, b(a.v1.0), b(vm), b(a.v2.0)));
-            let at_or_before = rom.lookup(GqRom::address(e.tg, e.lr, b_low(a.v1.0), b_low(vm), b_low(a.v2.0)));
+            // The readings differ only when a value lies exactly on a half-cell line.
+            let on_line = |v: i64| (v - origin.0) & ((1i64 << half_shift) - 1) == 0;
+            let at_or_before = if on_line(a.v1.0) || on_line(vm) || on_line(a.v2.0) {
+                rom.lookup(GqRom::address(e.tg, e.lr, b_low(a.v1.0), b_low(vm), b_low(a.v2.0)))
+            } else {
+                at_or_after
+            };
             // LR = 1 (polygon on the greater side): IN is "line before the child",
             // OUT is "line after it"; LR = 0 the other way round.
             let (ci, cri) = if e.lr { (at_or_before.0, at_or_after.1) } else { (at_or_after.0, at_or_before.1) };

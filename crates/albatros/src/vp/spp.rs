@@ -139,33 +139,34 @@ impl SubpixelProcessors {
             // Whether an endpoint of the edge is near this cell at all (else no pixel
             // of it is a vertex pixel of this edge).
             let vertex_cell = self.vertex_exact && near_end_cell(&e.exact, frag.px, frag.py);
-            // V on the five pixel lines of the cell: rows for a vertical edge,
-            // columns for a horizontal one (exact: additions of the slope).
-            let mut v = [0i64; 5];
-            for (k, vk) in v.iter_mut().enumerate() {
-                *vk = a.v1.0 + e.slope.0 * k as i64;
-            }
+            // q on the five pixel lines of the cell (rows for a vertical edge, columns
+            // for a horizontal one), relative to the cell's first pixel column (row);
+            // the next pixel across is 8 eighths further, so its q is 8 less. V is
+            // exact (additions of the slope), so five roundings serve 16 pixels.
             let base = match e.tg {
                 Tg::Vertical => i64::from(frag.px),
                 Tg::Horizontal => i64::from(frag.py),
-            };
+            } << EDGE_FRAC_BITS;
+            let mut q = [0i32; 5];
+            for (k, qk) in q.iter_mut().enumerate() {
+                *qk = round_q(a.v1.0 + e.slope.0 * k as i64 - base);
+            }
+            let table = self.table.half(e.tg, e.lr);
             for across in 0..4usize {
-                // Pixel column (vertical edge) or row (horizontal) at `across`.
-                let o = (base + across as i64) << EDGE_FRAC_BITS;
+                let shift = (across as i32) << SPP_V_BITS;
                 for along in 0..4usize {
                     let pixel = match e.tg {
                         Tg::Vertical => along * 4 + across,
                         Tg::Horizontal => across * 4 + along,
                     };
-                    let (x, y) = (frag.px + (pixel as u32 & 3), frag.py + (pixel as u32 >> 2));
-                    if vertex_cell && near_end(&e.exact, x, y) {
-                        code[pixel] &= exact_set(&e.exact, e.lr, x, y);
-                        continue;
+                    if vertex_cell {
+                        let (x, y) = (frag.px + (pixel as u32 & 3), frag.py + (pixel as u32 >> 2));
+                        if near_end(&e.exact, x, y) {
+                            code[pixel] &= exact_set(&e.exact, e.lr, x, y);
+                            continue;
+                        }
                     }
-                    let q1 = round_q(v[along] - o);
-                    let q2 = round_q(v[along + 1] - o);
-                    let set = self.table.lookup(SppTable::address(e.tg, e.lr, q1, q2));
-                    code[pixel] &= set;
+                    code[pixel] &= SppTable::lookup_in(table, q[along] - shift, q[along + 1] - shift);
                 }
             }
         }

@@ -180,6 +180,21 @@ impl SppTable {
         self.sets[address]
     }
 
+    /// The part of the table for one `(TG, LR)`: `SPP_Q_COUNT * SPP_Q_COUNT` sets.
+    #[inline]
+    pub fn half(&self, tg: Tg, lr: bool) -> &[u16; SPP_Q_COUNT * SPP_Q_COUNT] {
+        let start = Self::address(tg, lr, SPP_Q_MIN, SPP_Q_MIN);
+        self.sets[start..start + SPP_Q_COUNT * SPP_Q_COUNT].try_into().expect("the table has four parts")
+    }
+
+    /// The set for `(q1, q2)` in one part of the table ([`SppTable::half`]).
+    #[inline]
+    pub fn lookup_in(part: &[u16; SPP_Q_COUNT * SPP_Q_COUNT], q1: i32, q2: i32) -> u16 {
+        let q1 = (q1.clamp(SPP_Q_MIN, SPP_Q_MAX) - SPP_Q_MIN) as usize;
+        let q2 = (q2.clamp(SPP_Q_MIN, SPP_Q_MAX) - SPP_Q_MIN) as usize;
+        part[q1 * SPP_Q_COUNT + q2]
+    }
+
     /// Builds the table from its definition.
     pub fn build(mode: SppMode) -> Self {
         let n = SPP_Q_COUNT;
