@@ -79,6 +79,11 @@ struct RenderArgs {
     /// like "5-7" or "3,5,7".
     #[arg(long, default_value = "IV")]
     masks: String,
+    /// P1's mask rule only: mark just the cells one polygon covers wholly (by default
+    /// Greene's hierarchical coverage also marks cells that several polygons cover
+    /// together, and parents of four marked children: less work, the same image).
+    #[arg(long)]
+    p1_masks: bool,
     /// Turn the 2x2 readout filter F2 off.
     #[arg(long)]
     no_filter: bool,
@@ -113,6 +118,9 @@ struct BenchArgs {
     /// JSON lines instead of a table.
     #[arg(long)]
     json: bool,
+    /// P1's mask rule only (no hierarchical coverage).
+    #[arg(long)]
+    p1_masks: bool,
 }
 
 #[derive(clap::Args)]
@@ -253,6 +261,7 @@ fn render(args: RenderArgs) -> Result<()> {
             SppArg::Exact => SppMode::Exact,
         },
         stats: false,
+        hierarchical: !args.p1_masks,
         readout: Readout { filter: !args.no_filter, gamma: args.gamma },
         vb: args.vb,
     };
@@ -368,9 +377,10 @@ fn bench(args: BenchArgs) -> Result<()> {
         let screen = scene.screen;
         let db = Database::new(scene);
         let maps = std::sync::Arc::new(TextureMaps::from_scene(&db.scene, Path::new(""))?);
-        let mut vp = VideoProcessor::new(screen.width, screen.height, VpConfig::default());
+        let vp_cfg = VpConfig { hierarchical: !args.p1_masks, ..VpConfig::default() };
+        let mut vp = VideoProcessor::new(screen.width, screen.height, vp_cfg);
         vp.set_textures(maps.clone());
-        let mut matrix = Matrix::for_threads(screen.width, screen.height, VpConfig::default(), args.threads)?;
+        let mut matrix = Matrix::for_threads(screen.width, screen.height, vp_cfg, args.threads)?;
         matrix.set_textures(maps);
         let (mut total, mut gp_t, mut raster_t, mut color_t, mut readout_t) = (vec![], vec![], vec![], vec![], vec![]);
         let mut counters = GpCounters::default();

@@ -34,6 +34,9 @@ pub struct StatsArgs {
     /// "5-7" or "3,5,7", or all-modes (I, II, III and IV, against the half-frame).
     #[arg(long, default_value = "IV")]
     masks: String,
+    /// Greene's hierarchical coverage in the mask memories (off: P1's rule).
+    #[arg(long)]
+    hier_masks: bool,
     /// Hardware configuration, a TOML file (default: P1's base variant,
     /// hw/albatros-base.toml).
     #[arg(long, value_name = "FILE")]
@@ -84,6 +87,7 @@ pub fn run(args: StatsArgs) -> Result<()> {
     let textures = TextureMaps::from_scene(&db.scene, Path::new(""))?;
     let mut ex = Experiment::new(&frame);
     ex.textures = textures.into();
+    ex.hierarchical = args.hier_masks;
     let report = ex.report(&db.scene.name, Some(gp_counters), &modes, &hw);
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);

@@ -388,7 +388,8 @@ pub fn frame(db: &Database, eye: &Eye, screen: Screen, config: &GpConfig, counte
     let run = |visits: &[Visit]| {
         let setup = Setup::new(&db.scene, &view);
         let out = setup.frame_list();
-        let mut b = FrameBuilder { f: &shared, setup, out, counters: GpCounters::default(), scratch: Scratch::default() };
+        let mut b =
+            FrameBuilder { f: &shared, setup, out, counters: GpCounters::default(), scratch: Scratch::default() };
         for &step in visits {
             match step {
                 Visit::Face(f) => b.face(&db.bsp.faces[f as usize], view.world_to_eye, view.position, shared.sun_world),
@@ -398,10 +399,11 @@ pub fn frame(db: &Database, eye: &Eye, screen: Screen, config: &GpConfig, counte
         (b.out, b.counters)
     };
     let (mut out, mut c) = if config.threads > 1 && order.len() > VISITS_PER_STRETCH {
-        let parts: Vec<(FrameList, GpCounters)> = match rayon::ThreadPoolBuilder::new().num_threads(config.threads).build() {
-            Ok(pool) => pool.install(|| order.par_chunks(VISITS_PER_STRETCH).map(run).collect()),
-            Err(_) => order.chunks(VISITS_PER_STRETCH).map(run).collect(),
-        };
+        let parts: Vec<(FrameList, GpCounters)> =
+            match rayon::ThreadPoolBuilder::new().num_threads(config.threads).build() {
+                Ok(pool) => pool.install(|| order.par_chunks(VISITS_PER_STRETCH).map(run).collect()),
+                Err(_) => order.chunks(VISITS_PER_STRETCH).map(run).collect(),
+            };
         let mut parts = parts.into_iter();
         let (mut out, mut c) = parts.next().expect("at least one stretch");
         for (o, k) in parts {

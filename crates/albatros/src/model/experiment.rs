@@ -133,12 +133,14 @@ pub struct Experiment<'a> {
     pub textures: Arc<TextureMaps>,
     /// The SPP table.
     pub spp: SppMode,
+    /// Greene's hierarchical coverage in the mask memories.
+    pub hierarchical: bool,
 }
 
 impl<'a> Experiment<'a> {
     /// An experiment on `frame` with no textures and P1's area-faithful SPP table.
     pub fn new(frame: &'a FrameList) -> Self {
-        Self { frame, textures: Arc::default(), spp: SppMode::Area }
+        Self { frame, textures: Arc::default(), spp: SppMode::Area, hierarchical: false }
     }
 
     /// The root level of the frame's screen.
@@ -148,7 +150,8 @@ impl<'a> Experiment<'a> {
 
     /// A video processor for the frame with counting on.
     pub fn video_processor(&self, masks: MaskLevels) -> VideoProcessor {
-        let config = VpConfig { masks, spp: self.spp, stats: true, ..VpConfig::default() };
+        let config =
+            VpConfig { masks, spp: self.spp, stats: true, hierarchical: self.hierarchical, ..VpConfig::default() };
         let mut vp = VideoProcessor::new(self.frame.width, self.frame.height, config);
         vp.set_textures(Arc::clone(&self.textures));
         vp

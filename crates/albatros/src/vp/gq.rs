@@ -195,6 +195,8 @@ pub struct CellProcessors {
     pub masks: MaskLevels,
     /// The part of the screen this VP renders.
     pub share: Share,
+    /// Greene's hierarchical coverage ([`CellProcessors::mark_covered`]).
+    pub hierarchical: bool,
     /// When `Some`, every cell the GQs test during a descent *with counting on*
     /// (`STATS`) is appended, in processing order, with its [`CellKind`]; polygons
     /// dropped whole add their starting cell. For the `render --cells` picture.
@@ -252,6 +254,7 @@ impl CellProcessors {
             height,
             masks,
             share: Share::WHOLE,
+            hierarchical: false,
             recorder: None,
             memories,
             scratch: vec![Vec::new(); root_level as usize + 1],
@@ -276,6 +279,30 @@ impl CellProcessors {
                     }
                 }
             }
+        }
+    }
+
+    /// Greene's hierarchical coverage: the last-level cell `(cx, cy)` is now wholly
+    /// covered (all its subpixels): mark it, and every ancestor whose four children
+    /// are then all marked, as far up as the levels in use reach. Sound: a covered
+    /// cell hides everything behind it, so dropping it early changes no subpixel.
+    pub fn mark_covered(&mut self, cx: u32, cy: u32) {
+        let (mut x, mut y) = (cx, cy);
+        let mut k = self.root_level;
+        while k >= 1 && self.masks.has(k) {
+            self.memories[k as usize].set(x as usize, y as usize);
+            let (px, py) = (x & !1, y & !1);
+            let m = &self.memories[k as usize];
+            let all = m.get(px as usize, py as usize)
+                && m.get(px as usize + 1, py as usize)
+                && m.get(px as usize, py as usize + 1)
+                && m.get(px as usize + 1, py as usize + 1);
+            if !all {
+                break;
+            }
+            x >>= 1;
+            y >>= 1;
+            k -= 1;
         }
     }
 

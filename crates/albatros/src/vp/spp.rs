@@ -36,6 +36,8 @@ pub struct Visible {
     pub sets: [u16; 16],
     /// Bit per pixel: first write (the pixel had nothing covered before).
     pub first: u16,
+    /// The cell is now wholly covered (all 256 subpixels of its mask memory set).
+    pub covered: bool,
 }
 
 /// The 16 SPPs and the subpixel mask memory.
@@ -224,7 +226,8 @@ impl SubpixelProcessors {
             let on_screen = (self.width - frag.px).min(CELL_SIDE) * (self.height - frag.py).min(CELL_SIDE);
             counters.count_spp_fragment(&sets, on_screen);
         }
-        Visible { px: frag.px, py: frag.py, sets, first }
+        let covered = mask.iter().all(|&m| m == FULL);
+        Visible { px: frag.px, py: frag.py, sets, first, covered }
     }
 
     /// The background's fragment in cell `(cx, cy)`: every subpixel still uncovered.
@@ -239,7 +242,7 @@ impl SubpixelProcessors {
             }
             mask[i] = FULL;
         }
-        Visible { px: cx as u32 * CELL_SIDE, py: cy as u32 * CELL_SIDE, sets, first }
+        Visible { px: cx as u32 * CELL_SIDE, py: cy as u32 * CELL_SIDE, sets, first, covered: true }
     }
 }
 

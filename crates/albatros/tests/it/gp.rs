@@ -289,7 +289,8 @@ fn several_geometry_processors_give_the_same_frame_list() {
         let mut c1 = gp::GpCounters::default();
         let mut c3 = gp::GpCounters::default();
         let one = gp::frame(&db, &db.scene.eye, db.scene.screen, &GpConfig::default(), &mut c1);
-        let three = gp::frame(&db, &db.scene.eye, db.scene.screen, &GpConfig { threads: 3, ..GpConfig::default() }, &mut c3);
+        let three =
+            gp::frame(&db, &db.scene.eye, db.scene.screen, &GpConfig { threads: 3, ..GpConfig::default() }, &mut c3);
         assert!(one == three, "{name}: the frame list depends on the number of GPs");
         assert_eq!(c1, c3, "{name}: counters");
     }

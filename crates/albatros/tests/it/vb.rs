@@ -416,9 +416,9 @@ fn vb_cost() {
         for _ in 0..REPEAT {
             for py in (0..h).step_by(4) {
                 for px in (0..w).step_by(4) {
-                    let full = Visible { px, py, sets: [0xFFF0; 16], first: 0xFFFF };
+                    let full = Visible { px, py, sets: [0xFFF0; 16], first: 0xFFFF, covered: false };
                     vb.accumulate::<false>(&full, &colors, &mut counters);
-                    let rest = Visible { px, py, sets: [0x000F; 16], first: 0 };
+                    let rest = Visible { px, py, sets: [0x000F; 16], first: 0, covered: true };
                     vb.accumulate::<false>(&rest, &colors, &mut counters);
                 }
             }

@@ -298,6 +298,13 @@ fn masks_change_work_never_the_image() {
                 Some(f) => assert!(f == &image, "{name}: mode {mode} changed the image"),
             }
         }
+        // Greene's hierarchical coverage on top of mode IV: less work, same image.
+        let config = VpConfig { masks: MaskLevels::mode_iv(l), hierarchical: true, stats: true, ..VpConfig::default() };
+        let mut vp = VideoProcessor::new(frame.width, frame.height, config);
+        let image = vp.render(&frame);
+        println!("{name} mode IV + hierarchical coverage: cells tested {}", vp.counters.cells_tested());
+        assert!(vp.counters.cells_tested() <= prev_cells, "{name}: hierarchical coverage added work");
+        assert!(first.as_ref() == Some(&image), "{name}: hierarchical coverage changed the image");
     }
 }
 
