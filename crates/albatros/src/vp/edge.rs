@@ -165,18 +165,26 @@ impl EdgeCode {
         };
         // Canonical order: increasing t, so the rounding cannot depend on direction.
         let (au, aw, bu, bw) = if aw <= bw { (au, aw, bu, bw) } else { (bu, bw, au, aw) };
-        let (du, dw) = (i128::from(bu - au), i128::from(bw - aw));
+        let (du, dw) = (bu - au, bw - aw);
         debug_assert!(dw > 0);
         // V(t) = au + (t - aw) du / dw, in snapped units; at t = 0 and t = root_side,
-        // rounded down to 2^-ROOT_V_BITS pixel.
-        let scale = 1i128 << (ROOT_V_BITS - SNAP_BITS);
-        let v_at = |t_snapped: i128| -> i128 {
-            let num = (i128::from(au) * dw + (t_snapped - i128::from(aw)) * du) * scale;
-            num.div_euclid(dw)
+        // rounded down to 2^-ROOT_V_BITS pixel. On screens up to 8192 pixels every
+        // term is below 2^51, so i64 is exact; i128 takes over beyond that.
+        let scale_bits = ROOT_V_BITS - SNAP_BITS;
+        let v_at = |t: i64| -> i128 {
+            let exact64 = au
+                .checked_mul(dw)
+                .and_then(|p| (t - aw).checked_mul(du).and_then(|q| p.checked_add(q)))
+                .and_then(|n| n.checked_mul(1 << scale_bits));
+            match exact64 {
+                Some(num) => i128::from(num.div_euclid(dw)),
+                None => ((i128::from(au) * i128::from(dw) + i128::from(t - aw) * i128::from(du)) << scale_bits)
+                    .div_euclid(i128::from(dw)),
+            }
         };
         let side = i128::from(root_side);
         let v1 = v_at(0);
-        let v2 = v_at(side * i128::from(SNAP_ONE));
+        let v2 = v_at(i64::from(root_side) * i64::from(SNAP_ONE));
         let shift = EDGE_FRAC_BITS - ROOT_V_BITS;
         let origin = (v1 << shift) as i64;
         let span = (v2 - v1) << shift;
