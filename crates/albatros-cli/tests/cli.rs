@@ -8,10 +8,17 @@ fn albatros(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_albatros")).args(args).output().expect("the albatros binary runs")
 }
 
+/// A scratch file in a folder of this test run, removed when the test binary exits
+/// (each test removes what it made at its end).
 fn tmp(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("albatros-cli-test-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     dir.join(name)
+}
+
+/// Removes a scratch file or folder made by [`tmp`].
+fn cleanup(path: &std::path::Path) {
+    let _ = std::fs::remove_dir_all(path).or_else(|_| std::fs::remove_file(path));
 }
 
 fn stderr(o: &Output) -> String {
@@ -34,6 +41,7 @@ fn render_writes_a_png_of_the_default_scene() {
     assert!(o.status.success(), "{}", stderr(&o));
     let bytes = std::fs::read(&out).unwrap();
     assert_eq!(&bytes[1..4], b"PNG");
+    cleanup(&out);
 }
 
 #[test]
@@ -49,6 +57,7 @@ fn dump_and_info_work_on_the_default_scene() {
     for key in ["models", "faces", "bsp", "frame list"] {
         assert!(text.contains(key), "info lacks {key}: {text}");
     }
+    cleanup(&out);
 }
 
 #[test]
@@ -61,6 +70,7 @@ fn tables_writes_hex_files() {
     assert!(rom.lines().all(|l| l.len() == 2 && u8::from_str_radix(l, 16).is_ok()));
     let spp = std::fs::read_to_string(dir.join("spp_area.hex")).unwrap();
     assert_eq!(spp.lines().count(), 2500);
+    cleanup(&dir);
 }
 
 #[test]
@@ -75,4 +85,5 @@ fn bad_input_gets_a_clear_error() {
     let bad = tmp("bad.toml");
     std::fs::write(&bad, "[screen]\nwidth = 640\nheigth = 480\n").unwrap();
     fails_with(&["render", bad.to_str().unwrap()], "bad.toml:3");
+    cleanup(&bad);
 }

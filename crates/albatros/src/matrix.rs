@@ -114,14 +114,15 @@ impl Matrix {
         self.read_out()
     }
 
-    /// Gathers the VPs' video memories into one interleaved image and reads it out.
+    /// Gathers the VPs' video memories into one interleaved image and reads it out
+    /// (in bands of rows on the matrix's threads).
     pub fn read_out(&mut self) -> Image {
         let (first, rest) = self.vps.split_first_mut().expect("at least one VP");
         for vp in rest.iter() {
-            let share = vp.gq.share;
-            first.vb.copy_from(&vp.vb, |x, y| share.owns_pixel(x, y));
+            first.vb.copy_share_from(&vp.vb, &vp.gq.share);
         }
-        first.vb.read_out(&first.config.readout)
+        let first = &*first;
+        self.pool.install(|| first.vb.read_out_parallel(&first.config.readout))
     }
 
     /// Renders a frame list on every VP (their video memories hold the result).

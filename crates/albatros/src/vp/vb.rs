@@ -107,11 +107,14 @@ use std::sync::OnceLock;
 
 use glam::Vec3;
 
+use super::gq::Share;
 use super::spp::{Visible, CELL_SIDE};
 use crate::model::stats::Counters;
 
 /// Entries of the float path's gamma table (linear input resolution).
 pub const GAMMA_TABLE_SIZE: usize = 4096;
+/// Rows per band when the readout runs on several threads.
+pub const READOUT_BAND_ROWS: usize = 32;
 
 /// Smallest bit count of a fixed-point VB code.
 pub const VB_BITS_MIN: u32 = 8;
@@ -721,22 +724,63 @@ impl VideoBuffer {
 
     /// Reads the frame out through F2 and the gamma table.
     pub fn read_out(&self, opts: &Readout) -> Image {
-        let (w, h) = (self.width as usize, self.height as usize);
-        let pixels = match &self.memory {
-            Memory::Float(accum) => read_out_float(w, h, accum, opts),
-            Memory::Log { scale, codes } => {
-                read_out_fine(w, h, codes, opts.filter, *scale, &scale.gamma_table(opts.gamma))
-            }
-            Memory::Linear { scale, codes } => {
-                read_out_fine(w, h, codes, opts.filter, scale, &scale.gamma_table(opts.gamma))
-            }
-        };
+        let mut pixels = vec![0u8; self.width as usize * self.height as usize * 3];
+        self.read_out_rows(opts, 0..self.height as usize, &mut pixels);
         Image { width: self.width, height: self.height, pixels }
     }
 
+    /// Reads the frame out in bands of rows on the current rayon pool: the same
+    /// bytes as [`Self::read_out`] (each output row depends only on its own row and
+    /// the one below).
+    pub fn read_out_parallel(&self, opts: &Readout) -> Image {
+        use rayon::prelude::*;
+        let (w, h) = (self.width as usize, self.height as usize);
+        let mut pixels = vec![0u8; w * h * 3];
+        let band = READOUT_BAND_ROWS;
+        pixels.par_chunks_mut(band * w * 3).enumerate().for_each(|(k, out)| {
+            let y0 = k * band;
+            self.read_out_rows(opts, y0..(y0 + band).min(h), out);
+        });
+        Image { width: self.width, height: self.height, pixels }
+    }
+
+    /// Reads out rows `rows` (F2 uses the row below the last one) into `out`, RGB8,
+    /// `3 * width * rows.len()` bytes.
+    pub fn read_out_rows(&self, opts: &Readout, rows: std::ops::Range<usize>, out: &mut [u8]) {
+        let (w, h) = (self.width as usize, self.height as usize);
+        match &self.memory {
+            Memory::Float(accum) => read_out_float(w, h, accum, opts, rows, out),
+            Memory::Log { scale, codes } => {
+                read_out_fine(w, h, codes, opts.filter, *scale, &scale.gamma_table(opts.gamma), rows, out)
+            }
+            Memory::Linear { scale, codes } => {
+                read_out_fine(w, h, codes, opts.filter, scale, &scale.gamma_table(opts.gamma), rows, out)
+            }
+        }
+    }
+
+    /// Copies the pixels of a matrix VP's share from its buffer, of the same size and
+    /// mode (P3: the video memories of a VP matrix together form one interleaved
+    /// image), a tile run at a time. Panics on a buffer of another size or mode.
+    pub fn copy_share_from(&mut self, other: &VideoBuffer, share: &Share) {
+        assert_eq!(
+            (self.width, self.height, self.mode()),
+            (other.width, other.height, other.mode()),
+            "video buffers of different sizes or modes"
+        );
+        let (w, h) = (self.width as usize, self.height as usize);
+        match (&mut self.memory, &other.memory) {
+            (Memory::Float(dst), Memory::Float(src)) => copy_share(dst, src, w, h, share),
+            (Memory::Log { codes: dst, .. }, Memory::Log { codes: src, .. })
+            | (Memory::Linear { codes: dst, .. }, Memory::Linear { codes: src, .. }) => {
+                copy_share(dst, src, w, h, share)
+            }
+            _ => unreachable!("the modes were compared above"),
+        }
+    }
+
     /// Copies the pixels `(x, y)` for which `owns(x, y)` holds from a buffer of the
-    /// same size and mode (P3: the video memories of a VP matrix together form one
-    /// interleaved image). Panics on a buffer of another size or mode.
+    /// same size and mode. Panics on a buffer of another size or mode.
     pub fn copy_from(&mut self, other: &VideoBuffer, owns: impl Fn(u32, u32) -> bool) {
         assert_eq!(
             (self.width, self.height, self.mode()),
@@ -757,6 +801,23 @@ impl VideoBuffer {
     /// Cells per row and rows of 4x4 cells covering the buffer.
     pub fn cells(&self) -> (usize, usize) {
         (self.width.div_ceil(CELL_SIDE) as usize, self.height.div_ceil(CELL_SIDE) as usize)
+    }
+}
+
+/// Copies the pixels of a matrix VP's share: whole tile runs of the rows it owns.
+fn copy_share<T: Copy>(dst: &mut [T], src: &[T], width: usize, height: usize, share: &Share) {
+    let tile = share.tile as usize;
+    for y in 0..height {
+        if (y / tile) % share.q as usize != share.j as usize {
+            continue;
+        }
+        let row = y * width;
+        let mut x = share.i as usize * tile;
+        while x < width {
+            let end = (x + tile).min(width);
+            dst[row + x..row + end].copy_from_slice(&src[row + x..row + end]);
+            x += tile * share.p as usize;
+        }
     }
 }
 
@@ -784,11 +845,11 @@ fn for_visible(vis: &Visible, width: usize, mut f: impl FnMut(usize, u32, bool, 
 }
 
 /// The float path's readout: F2 in `f32`, then the gamma table over `0..=1`.
-fn read_out_float(w: usize, h: usize, accum: &[Vec3], opts: &Readout) -> Vec<u8> {
+fn read_out_float(w: usize, h: usize, accum: &[Vec3], opts: &Readout, rows: std::ops::Range<usize>, out: &mut [u8]) {
     let table = gamma_table(opts.gamma);
-    let mut pixels = Vec::with_capacity(w * h * 3);
     let mut line = vec![Vec3::ZERO; w];
-    for y in 0..h {
+    let mut pixels = out.chunks_exact_mut(3);
+    for y in rows {
         let below = (y + 1).min(h - 1);
         // Pass 1: half sums of vertically adjacent pixels (the line buffer).
         for (x, l) in line.iter_mut().enumerate() {
@@ -797,13 +858,13 @@ fn read_out_float(w: usize, h: usize, accum: &[Vec3], opts: &Readout) -> Vec<u8>
         // Pass 2: half sums of horizontally adjacent ones.
         for x in 0..w {
             let c = if opts.filter { (line[x] + line[(x + 1).min(w - 1)]) * 0.5 } else { line[x] };
-            for ch in c.to_array() {
+            let px = pixels.next().expect("out holds the rows");
+            for (o, ch) in px.iter_mut().zip(c.to_array()) {
                 let idx = (ch.clamp(0.0, 1.0) * (GAMMA_TABLE_SIZE - 1) as f32).round() as usize;
-                pixels.push(table[idx]);
+                *o = table[idx];
             }
         }
     }
-    pixels
 }
 
 /// The arithmetic of F2 on a fixed-point code, in quarter codes.
@@ -853,6 +914,7 @@ impl QuarterCodes for LinearScale {
 }
 
 /// The fixed-point paths' readout: F2 on quarter codes, then the gamma table.
+#[allow(clippy::too_many_arguments, reason = "the readout's registers, passed as they are")]
 fn read_out_fine(
     w: usize,
     h: usize,
@@ -860,10 +922,12 @@ fn read_out_fine(
     filter: bool,
     f2: &impl QuarterCodes,
     table: &[u8],
-) -> Vec<u8> {
-    let mut pixels = Vec::with_capacity(w * h * 3);
+    rows: std::ops::Range<usize>,
+    out: &mut [u8],
+) {
     let mut line = vec![[0i32; 3]; w];
-    for y in 0..h {
+    let mut pixels = out.chunks_exact_mut(3);
+    for y in rows {
         let below = (y + 1).min(h - 1);
         // Pass 1: half sums of vertically adjacent pixels (the line buffer).
         for (x, l) in line.iter_mut().enumerate() {
@@ -877,13 +941,13 @@ fn read_out_fine(
         // Pass 2: half sums of horizontally adjacent ones.
         for x in 0..w {
             let (a, b) = (line[x], line[(x + 1).min(w - 1)]);
+            let px = pixels.next().expect("out holds the rows");
             for ch in 0..3 {
                 let v = if filter { f2.mean(a[ch], b[ch]) } else { a[ch] };
-                pixels.push(table[f2.address(v)]);
+                px[ch] = table[f2.address(v)];
             }
         }
     }
-    pixels
 }
 
 /// The float path's gamma table: linear intensity (`GAMMA_TABLE_SIZE` steps over
