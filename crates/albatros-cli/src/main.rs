@@ -350,6 +350,53 @@ fn info(args: SceneArgs) -> Result<()> {
     Ok(())
 }
 
+/// One line of `albatros bench`'s output.
+struct BenchRow<'a> {
+    name: &'a str,
+    screen: Screen,
+    threads: usize,
+    frames: usize,
+    /// GP, raster, colour + VB, readout medians (ms); `None` for the pipelined run.
+    stages: Option<[f64; 4]>,
+}
+
+impl BenchRow<'_> {
+    /// Prints the row as a table line or a JSON line; `(median, min, max)` in ms.
+    fn print(&self, (median, min, max): (f64, f64, f64), json: bool) {
+        let size = format!("{}x{}", self.screen.width, self.screen.height);
+        if json {
+            let mut v = serde_json::json!({
+                "scene": self.name, "width": self.screen.width, "height": self.screen.height,
+                "threads": self.threads, "pipeline": self.stages.is_none(), "frames": self.frames,
+                "median_ms": median, "min_ms": min, "max_ms": max, "fps": 1e3 / median,
+            });
+            if let Some([gp, raster, color, readout]) = self.stages {
+                v["stages"] = serde_json::json!({
+                    "gp_ms": gp, "raster_ms": raster, "color_vb_ms": color, "readout_ms": readout,
+                });
+            }
+            println!("{v}");
+            return;
+        }
+        let head = format!(
+            "{:<10} {:>10} {:>7} {:>7.2}ms {:>7.2}ms {:>7.2}ms {:>8.1}",
+            self.name,
+            size,
+            self.frames,
+            median,
+            min,
+            max,
+            1e3 / median
+        );
+        match self.stages {
+            Some([gp, raster, color, readout]) => {
+                println!("{head} {gp:>7.2}ms {raster:>7.2}ms {color:>7.2}ms   readout {readout:.2}ms")
+            }
+            None => println!("{head}   (pipelined: GP of frame n+1 beside the VP of frame n)"),
+        }
+    }
+}
+
 /// Median, minimum and maximum of a sample, in milliseconds.
 fn spread(mut v: Vec<f64>) -> (f64, f64, f64) {
     v.sort_by(f64::total_cmp);
@@ -388,26 +435,8 @@ fn bench(args: BenchArgs) -> Result<()> {
         matrix.set_textures(maps.clone());
         if args.pipeline {
             let intervals = pipelined(&db, screen, vp_cfg, &maps, args.threads, args.warmup + args.frames)?;
-            let (median, min, max) = spread(intervals[args.warmup..].to_vec());
-            if args.json {
-                let v = serde_json::json!({
-                    "scene": name, "width": screen.width, "height": screen.height, "threads": args.threads,
-                    "pipeline": true, "frames": args.frames, "median_ms": median, "min_ms": min, "max_ms": max,
-                    "fps": 1e3 / median,
-                });
-                println!("{v}");
-            } else {
-                println!(
-                    "{:<10} {:>10} {:>7} {:>7.2}ms {:>7.2}ms {:>7.2}ms {:>8.1}   (pipelined: GP of frame n+1 beside the VP of frame n)",
-                    name,
-                    format!("{}x{}", screen.width, screen.height),
-                    args.frames,
-                    median,
-                    min,
-                    max,
-                    1e3 / median
-                );
-            }
+            let row = BenchRow { name: &name, screen, threads: args.threads, frames: args.frames, stages: None };
+            row.print(spread(intervals[args.warmup..].to_vec()), args.json);
             continue;
         }
         let (mut total, mut gp_t, mut raster_t, mut color_t, mut readout_t) = (vec![], vec![], vec![], vec![], vec![]);
@@ -448,32 +477,9 @@ fn bench(args: BenchArgs) -> Result<()> {
                 total.push(ms(t0, t1) + ms(t2, t3) + ms(t3, t4));
             }
         }
-        let (median, min, max) = spread(total);
-        let (gp_m, raster_m, color_m, readout_m) =
-            (spread(gp_t).0, spread(raster_t).0, spread(color_t).0, spread(readout_t).0);
-        if args.json {
-            let v = serde_json::json!({
-                "scene": name, "width": screen.width, "height": screen.height, "threads": args.threads,
-                "frames": args.frames, "median_ms": median, "min_ms": min, "max_ms": max, "fps": 1e3 / median,
-                "stages": { "gp_ms": gp_m, "raster_ms": raster_m, "color_vb_ms": color_m, "readout_ms": readout_m },
-            });
-            println!("{v}");
-        } else {
-            println!(
-                "{:<10} {:>10} {:>7} {:>7.2}ms {:>7.2}ms {:>7.2}ms {:>8.1} {:>7.2}ms {:>7.2}ms {:>7.2}ms   readout {:.2}ms",
-                name,
-                format!("{}x{}", screen.width, screen.height),
-                args.frames,
-                median,
-                min,
-                max,
-                1e3 / median,
-                gp_m,
-                raster_m,
-                color_m,
-                readout_m
-            );
-        }
+        let stages = [spread(gp_t).0, spread(raster_t).0, spread(color_t).0, spread(readout_t).0];
+        let row = BenchRow { name: &name, screen, threads: args.threads, frames: args.frames, stages: Some(stages) };
+        row.print(spread(total), args.json);
     }
     Ok(())
 }

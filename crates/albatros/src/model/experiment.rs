@@ -16,7 +16,7 @@ use serde::Serialize;
 
 use super::stats::{Counters, Derived};
 use super::timing::{HwConfig, Timing};
-use crate::frame::{FrameList, ScreenVertex};
+use crate::frame::FrameList;
 use crate::gp::GpCounters;
 use crate::vp::gq::{CellProcessors, GqPolygon, MaskLevels};
 use crate::vp::spp::SubpixelProcessors;
@@ -175,7 +175,7 @@ impl<'a> Experiment<'a> {
         let mut total = 0u64;
         for poly in &self.frame.polygons {
             let edges = self.frame.edges_of(poly);
-            let bbox = pixel_bbox(self.frame.vertices_of(poly), w, h);
+            let bbox = crate::vp::bbox(self.frame.vertices_of(poly), w, h);
             if bbox[0] >= bbox[1] || bbox[2] >= bbox[3] {
                 continue;
             }
@@ -239,20 +239,4 @@ impl<'a> Experiment<'a> {
             runs,
         }
     }
-}
-
-/// The pixel bounding box `[x0, x1) x [y0, y1)` of a polygon inside the screen,
-/// widened by a pixel each way: the same box as the VP's own (`vp::bbox`, private
-/// there), since a subpixel set may reach one pixel beyond the exact outline.
-fn pixel_bbox(verts: &[ScreenVertex], width: u32, height: u32) -> [u32; 4] {
-    let (mut x0, mut x1, mut y0, mut y1) = (f32::MAX, f32::MIN, f32::MAX, f32::MIN);
-    for v in verts {
-        x0 = x0.min(v.x);
-        x1 = x1.max(v.x);
-        y0 = y0.min(v.y);
-        y1 = y1.max(v.y);
-    }
-    let lo = |v: f32, max: u32| ((v.floor() - 1.0).max(0.0) as u32).min(max);
-    let hi = |v: f32, max: u32| ((v.ceil() + 1.0).max(0.0) as u32).min(max);
-    [lo(x0, width), hi(x1, width), lo(y0, height), hi(y1, height)]
 }

@@ -262,7 +262,7 @@ impl VideoProcessor {
 }
 
 /// The pixel bounding box `[x0, x1) x [y0, y1)` of a polygon, inside the screen.
-fn bbox(verts: &[crate::frame::ScreenVertex], width: u32, height: u32) -> [u32; 4] {
+pub fn bbox(verts: &[crate::frame::ScreenVertex], width: u32, height: u32) -> [u32; 4] {
     let (mut x0, mut x1, mut y0, mut y1) = (f32::MAX, f32::MIN, f32::MAX, f32::MIN);
     for v in verts {
         x0 = x0.min(v.x);
