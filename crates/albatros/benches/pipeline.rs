@@ -4,6 +4,9 @@
 //! gamma) and the matrix on two threads (`matrix2`). `cargo bench` runs them; CI only
 //! builds them (these machines are too noisy for timings in CI).
 
+// criterion's macros generate undocumented public functions.
+#![allow(missing_docs)]
+
 use std::path::Path;
 use std::sync::Arc;
 
