@@ -14,7 +14,8 @@ mod cells;
 mod stats;
 
 use albatros::db::{builtin, load, Scene, Screen};
-use albatros::gp::{self, Clipper, Database, GpConfig, GpCounters};
+use albatros::frame::FrameList;
+use albatros::gp::{self, Clipper, Database, GpConfig, GpCounters, GpMemory};
 use albatros::matrix::Matrix;
 use albatros::vp::gq::{CellProcessors, MaskLevels};
 use albatros::vp::tables::{GqRom, SppMode, SppTable};
@@ -442,9 +443,11 @@ fn bench(args: BenchArgs) -> Result<()> {
         let (mut total, mut gp_t, mut raster_t, mut color_t, mut readout_t) = (vec![], vec![], vec![], vec![], vec![]);
         let mut counters = GpCounters::default();
         let gp_cfg = GpConfig { threads: args.threads, ..GpConfig::default() };
+        // The GP's memory and the frame list are kept from frame to frame.
+        let (mut gp_memory, mut frame) = (GpMemory::default(), FrameList::default());
         for f in 0..args.warmup + args.frames {
             let t0 = std::time::Instant::now();
-            let frame = gp::frame(&db, &db.scene.eye, screen, &gp_cfg, &mut counters);
+            gp::frame_into(&db, &db.scene.eye, screen, &gp_cfg, &mut counters, &mut gp_memory, &mut frame);
             let t1 = std::time::Instant::now();
             // One thread: the raster stages alone, then the whole VP (colour and VB by
             // difference). More: the matrix, all stages together.
@@ -497,15 +500,21 @@ fn pipelined(
 ) -> Result<Vec<f64>> {
     let mut matrix = Matrix::for_threads(screen.width, screen.height, vp_cfg, threads)?;
     matrix.set_textures(maps.clone());
-    // A channel of one frame list: with the one being rendered, the two halves of FB.
-    let (tx, rx) = std::sync::mpsc::sync_channel::<albatros::frame::FrameList>(1);
+    // The two halves of FB: one filled by the GP while the VP reads the other; a
+    // half goes back to the GP once the VP is done with it.
+    let (tx, rx) = std::sync::mpsc::sync_channel::<FrameList>(1);
+    let (back_tx, back_rx) = std::sync::mpsc::channel::<FrameList>();
+    for _ in 0..2 {
+        back_tx.send(FrameList::default()).expect("the receiver is alive");
+    }
     let mut intervals = Vec::with_capacity(frames);
     std::thread::scope(|s| {
         s.spawn(move || {
-            let mut counters = GpCounters::default();
+            let (mut counters, mut memory) = (GpCounters::default(), GpMemory::default());
             for _ in 0..frames {
-                let f = gp::frame(db, &db.scene.eye, screen, &GpConfig::default(), &mut counters);
-                if tx.send(f).is_err() {
+                let Ok(mut half) = back_rx.recv() else { break };
+                gp::frame_into(db, &db.scene.eye, screen, &GpConfig::default(), &mut counters, &mut memory, &mut half);
+                if tx.send(half).is_err() {
                     break;
                 }
             }
@@ -514,6 +523,8 @@ fn pipelined(
         for frame in rx.iter() {
             let image = matrix.render(&frame);
             std::hint::black_box(image);
+            // The GP may be done already: then the half is not needed again.
+            let _ = back_tx.send(frame);
             let now = std::time::Instant::now();
             intervals.push((now - last).as_secs_f64() * 1e3);
             last = now;

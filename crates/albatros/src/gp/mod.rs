@@ -23,6 +23,8 @@ pub mod clip;
 pub mod lights;
 pub mod setup;
 
+use std::fmt;
+
 use glam::{DMat3, DMat4, DVec2, DVec3};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -365,7 +367,7 @@ struct Shared<'a> {
 struct FrameBuilder<'a> {
     f: &'a Shared<'a>,
     setup: Setup,
-    out: FrameList,
+    out: &'a mut FrameList,
     counters: GpCounters,
     scratch: Scratch,
 }
@@ -374,51 +376,103 @@ struct FrameBuilder<'a> {
 /// the load, large enough that stitching the frame lists costs nothing).
 const VISITS_PER_STRETCH: usize = 2048;
 
-/// Builds the frame list of one frame: the GP's whole job.
+/// Builds the frame list of one frame: the GP's whole job (a fresh list; see
+/// [`frame_into`] to reuse one frame to frame).
+pub fn frame(db: &Database, eye: &Eye, screen: Screen, config: &GpConfig, counters: &mut GpCounters) -> FrameList {
+    let mut out = FrameList::default();
+    frame_into(db, eye, screen, config, counters, &mut GpMemory::default(), &mut out);
+    out.polygons.shrink_to_fit();
+    out
+}
+
+/// The GP's working memory kept from frame to frame: the priority order, the
+/// stretches' frame lists and the threads of the several GPs. Reusing it (and the
+/// output list, one half of P1's double-buffered frame memory) means a frame
+/// allocates nothing once the lists have grown to the scene's size.
+#[derive(Default)]
+pub struct GpMemory {
+    order: Vec<Visit>,
+    stretches: Vec<FrameList>,
+    pool: Option<(usize, rayon::ThreadPool)>,
+}
+
+impl fmt::Debug for GpMemory {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("GpMemory")
+            .field("order", &self.order.len())
+            .field("stretches", &self.stretches.len())
+            .field("threads", &self.pool.as_ref().map(|(n, _)| *n))
+            .finish()
+    }
+}
+
+impl GpMemory {
+    /// A pool of `threads` workers, made once and kept (`None` if the system
+    /// refuses threads: the stretches then run one after another).
+    fn pool(&mut self, threads: usize) -> Option<&rayon::ThreadPool> {
+        if self.pool.as_ref().is_none_or(|(n, _)| *n != threads) {
+            self.pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().ok().map(|p| (threads, p));
+        }
+        self.pool.as_ref().map(|(_, p)| p)
+    }
+}
+
+/// Builds the frame list of one frame into `out` (cleared first, its allocations
+/// kept), with working memory `memory` kept between frames.
 ///
 /// With `config.threads > 1` the priority order is cut into stretches that several
 /// geometry processors set up in parallel (P5's several GPs); their frame lists are
 /// joined in order, so the result is the same, byte for byte.
-pub fn frame(db: &Database, eye: &Eye, screen: Screen, config: &GpConfig, counters: &mut GpCounters) -> FrameList {
+pub fn frame_into(
+    db: &Database,
+    eye: &Eye,
+    screen: Screen,
+    config: &GpConfig,
+    counters: &mut GpCounters,
+    memory: &mut GpMemory,
+    out: &mut FrameList,
+) {
     let view = View::new(eye, screen);
     let shared = Shared::new(db, view, *config);
     // The priority order: the BSP's traversal.
-    let mut order: Vec<Visit> = Vec::with_capacity(db.bsp.faces.len() + shared.guests.len() + 1);
+    let mut order = std::mem::take(&mut memory.order);
+    order.clear();
     db.bsp.traverse(view.position, |step| order.push(step));
-    let run = |visits: &[Visit]| {
+    let run = |visits: &[Visit], list: &mut FrameList| {
         let setup = Setup::new(&db.scene, &view);
-        let out = setup.frame_list();
+        setup.header(list);
         let mut b =
-            FrameBuilder { f: &shared, setup, out, counters: GpCounters::default(), scratch: Scratch::default() };
+            FrameBuilder { f: &shared, setup, out: list, counters: GpCounters::default(), scratch: Scratch::default() };
         for &step in visits {
             match step {
                 Visit::Face(f) => b.face(&db.bsp.faces[f as usize], view.world_to_eye, view.position, shared.sun_world),
                 Visit::Guests(n, s) => b.emit_guests(n, s),
             }
         }
-        (b.out, b.counters)
+        b.counters
     };
-    let (mut out, mut c) = if config.threads > 1 && order.len() > VISITS_PER_STRETCH {
-        let parts: Vec<(FrameList, GpCounters)> =
-            match rayon::ThreadPoolBuilder::new().num_threads(config.threads).build() {
-                Ok(pool) => pool.install(|| order.par_chunks(VISITS_PER_STRETCH).map(run).collect()),
-                Err(_) => order.chunks(VISITS_PER_STRETCH).map(run).collect(),
-            };
-        let mut parts = parts.into_iter();
-        let (mut out, mut c) = parts.next().expect("at least one stretch");
-        for (o, k) in parts {
-            out.append(&o);
-            c.add(&k);
+    let mut c = GpCounters::default();
+    let parallel = config.threads > 1 && order.len() > VISITS_PER_STRETCH;
+    let mut stretches = std::mem::take(&mut memory.stretches);
+    match if parallel { memory.pool(config.threads) } else { None } {
+        Some(pool) => {
+            stretches.resize_with(order.len().div_ceil(VISITS_PER_STRETCH), FrameList::default);
+            let parts: Vec<GpCounters> = pool.install(|| {
+                order.par_chunks(VISITS_PER_STRETCH).zip(stretches.par_iter_mut()).map(|(v, l)| run(v, l)).collect()
+            });
+            Setup::new(&db.scene, &view).header(out);
+            for (list, k) in stretches.iter().zip(&parts) {
+                out.append(list);
+                c.add(k);
+            }
         }
-        (out, c)
-    } else {
-        run(&order)
-    };
+        None => c = run(&order, out),
+    }
+    memory.stretches = stretches;
+    memory.order = order;
     c.add(&shared.counters);
     c.polygons_out = out.polygons.len() as u64;
-    out.polygons.shrink_to_fit();
     *counters = c;
-    out
 }
 
 impl<'a> Shared<'a> {
@@ -488,7 +542,7 @@ impl FrameBuilder<'_> {
                         li,
                         &self.f.view,
                         &mut self.setup,
-                        &mut self.out,
+                        self.out,
                         &mut self.scratch.window,
                     ) {
                         self.counters.lights += 1;
@@ -596,7 +650,7 @@ impl FrameBuilder<'_> {
             &scratch.eye,
             outline,
             &self.f.model_to_eye[face.instance as usize],
-            &mut self.out,
+            self.out,
         );
         if !ok {
             counters.degenerate += 1;

@@ -70,15 +70,20 @@ impl Setup {
 
     /// An empty frame list with this frame's header.
     pub fn frame_list(&self) -> FrameList {
-        FrameList {
-            width: self.view.screen.width,
-            height: self.view.screen.height,
-            background: self.background,
-            fog_color: self.fog,
-            visibility: self.visibility,
-            pixel_angle: (1.0 / self.view.focal) as f32,
-            ..FrameList::default()
-        }
+        let mut list = FrameList::default();
+        self.header(&mut list);
+        list
+    }
+
+    /// Empties `list` (keeping its allocations) and writes this frame's header.
+    pub fn header(&self, list: &mut FrameList) {
+        list.clear();
+        list.width = self.view.screen.width;
+        list.height = self.view.screen.height;
+        list.background = self.background;
+        list.fog_color = self.fog;
+        list.visibility = self.visibility;
+        list.pixel_angle = (1.0 / self.view.focal) as f32;
     }
 
     /// `1/Z` as a linear function of pixel coordinates, from the eye-space plane.

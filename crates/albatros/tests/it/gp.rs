@@ -295,3 +295,33 @@ fn several_geometry_processors_give_the_same_frame_list() {
         assert_eq!(c1, c3, "{name}: counters");
     }
 }
+
+#[test]
+fn a_reused_frame_memory_gives_the_same_frame_lists_as_fresh_ones() {
+    // Frames from several eyes with one GpMemory and one output list (as the bench and
+    // the pipeline reuse them): each must equal a fresh frame, on one and two GPs.
+    for name in ["default", "terrain"] {
+        let db = Database::new(builtin::scene(name).unwrap());
+        let screen = db.scene.screen;
+        let eyes: Vec<_> = [0.0, 40.0, -25.0, 0.0]
+            .iter()
+            .map(|&dh| {
+                let mut eye = db.scene.eye;
+                eye.heading += dh;
+                eye.position.y += dh.abs() * 0.5;
+                eye
+            })
+            .collect();
+        for threads in [1, 2] {
+            let config = GpConfig { threads, ..GpConfig::default() };
+            let (mut memory, mut list) = (gp::GpMemory::default(), FrameList::default());
+            for (k, eye) in eyes.iter().enumerate() {
+                let (mut c_reused, mut c_fresh) = (gp::GpCounters::default(), gp::GpCounters::default());
+                gp::frame_into(&db, eye, screen, &config, &mut c_reused, &mut memory, &mut list);
+                let fresh = gp::frame(&db, eye, screen, &config, &mut c_fresh);
+                assert!(list == fresh, "{name}, {threads} GPs, eye {k}: a reused memory changes the frame list");
+                assert_eq!(c_reused, c_fresh, "{name}, {threads} GPs, eye {k}: counters");
+            }
+        }
+    }
+}
