@@ -270,7 +270,9 @@ fn near_end_cell(line: &ExactLine, px: u32, py: u32) -> bool {
 }
 
 /// The subpixels of pixel `(x, y)` on the polygon's side of an exact line: the
-/// sign of the line's edge function at the 16 subpixel centres.
+/// sign of the line's edge function at the 16 subpixel centres
+/// ([`ExactLine::greater_side`] at each), the function stepped from centre to centre
+/// by additions.
 #[inline]
 fn exact_set(line: &ExactLine, lr: bool, x: u32, y: u32) -> u16 {
     // Subpixel centres at (2k + 1)/8 pixel, in snapped units.
@@ -278,10 +280,19 @@ fn exact_set(line: &ExactLine, lr: bool, x: u32, y: u32) -> u16 {
     const SUB: i64 = (SNAP_ONE / 4) as i64;
     let x0 = i64::from(x) * i64::from(SNAP_ONE) + HALF_SUB;
     let y0 = i64::from(y) * i64::from(SNAP_ONE) + HALF_SUB;
+    // A centre on the line: the one perturbation of `greater_side` decides.
+    let on_line = line.a > 0 || (line.a == 0 && line.b > 0);
+    let (step_x, step_y) = (line.a * SUB, line.b * SUB);
+    let mut row = line.a * x0 + line.b * y0 + line.c;
     let mut set = 0u16;
-    for sub in 0..16 {
-        let greater = line.greater_side(x0 + (sub & 3) as i64 * SUB, y0 + (sub >> 2) as i64 * SUB);
-        set |= u16::from(greater == lr) << sub;
+    for sy in 0..4 {
+        let mut e = row;
+        for sx in 0..4 {
+            let greater = e > 0 || (e == 0 && on_line);
+            set |= u16::from(greater == lr) << (4 * sy + sx);
+            e += step_x;
+        }
+        row += step_y;
     }
     set
 }
@@ -336,6 +347,40 @@ mod tests {
             assert_eq!(kept, 256 - 4 * u32::from(t), "t = {t}");
         }
         assert_eq!(thinning(0), [FULL; 16]);
+    }
+
+    #[test]
+    fn exact_set_is_greater_side_at_the_sixteen_centres() {
+        // Lines through random snapped points, some through subpixel centres (ties).
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut next = |n: i64| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state % n as u64) as i64
+        };
+        for k in 0..20_000 {
+            let (x, y) = (next(64) as u32, next(64) as u32);
+            let centre = |c: u32, s: i64| i64::from(c) * i64::from(SNAP_ONE) + (2 * s + 1) * i64::from(SNAP_ONE) / 8;
+            let p = if k % 3 == 0 {
+                (centre(x, next(4)), centre(y, next(4)))
+            } else {
+                (next(64 * i64::from(SNAP_ONE)), next(64 * i64::from(SNAP_ONE)))
+            };
+            let (a, b) = match k % 7 {
+                0 => (0, next(2000) + 1),
+                1 => (next(2000) + 1, 0),
+                _ => (next(4001) - 2000, next(4001) - 2000),
+            };
+            let line = ExactLine { a, b, c: -(a * p.0 + b * p.1), ends: [(0, 0); 2] };
+            for lr in [false, true] {
+                let set = exact_set(&line, lr, x, y);
+                for sub in 0..16 {
+                    let greater = line.greater_side(centre(x, sub & 3), centre(y, sub >> 2));
+                    assert_eq!(set >> sub & 1 == 1, greater == lr, "line {line:?}, pixel ({x}, {y}), subpixel {sub}");
+                }
+            }
+        }
     }
 
     #[test]
