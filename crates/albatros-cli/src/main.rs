@@ -55,7 +55,7 @@ enum Command {
 
 #[derive(clap::Args)]
 struct SceneArgs {
-    /// A built-in scene (default, rombm, terrain, city, many) or a TOML scene file.
+    /// A built-in scene (default, rombm, rhombus, terrain, city, many) or a TOML scene file.
     #[arg(default_value = "default")]
     scene: String,
     /// Screen size WxH (overrides the scene's).

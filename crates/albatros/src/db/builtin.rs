@@ -1,5 +1,6 @@
 //! Built-in scenes, addressable by name wherever a scene is taken: `default` (an
-//! airfield on approach), `rombm` (P1 fig. 4's 22 stacked rhombi), `terrain`
+//! airfield on approach), `rombm` (P1 fig. 4's 22 stacked rhombi), `rhombus` (the
+//! top rhombus of `rombm` alone: its depth-complexity-1 twin), `terrain`
 //! (a 256 x 256 heightfield), `city` (a few thousand boxes), `many` (about a million
 //! small triangles facing the eye).
 //!
@@ -21,13 +22,14 @@ use super::{
 };
 
 /// The names of the built-in scenes.
-pub const NAMES: &[&str] = &["default", "rombm", "terrain", "city", "many"];
+pub const NAMES: &[&str] = &["default", "rombm", "rhombus", "terrain", "city", "many"];
 
 /// The built-in scene of that name, if there is one.
 pub fn scene(name: &str) -> Option<Scene> {
     Some(match name {
         "default" => airfield(),
-        "rombm" => rombm(),
+        "rombm" => rombm("rombm", 0..RHOMBI),
+        "rhombus" => rombm("rhombus", RHOMBI - 1..RHOMBI),
         "terrain" => terrain(),
         "city" => city(),
         "many" => many(),
@@ -664,12 +666,14 @@ const ROMBM_SPACING: f32 = 2.5;
 const ROMBM_FOV: f32 = 60.0;
 
 /// `rombm`: 22 horizontal rhombi stacked one above another, each covering most of the
-/// square screen, seen straight down.
-fn rombm() -> Scene {
-    let mut s = Scene::empty("rombm");
-    let mut model = Model { name: "rombm".into(), ..Model::default() };
+/// square screen, seen straight down; `layers` picks which of them are built
+/// (`rhombus`, the top one alone, costs the same per pixel with no depth complexity:
+/// issue 6 compares the two).
+fn rombm(name: &str, layers: std::ops::Range<usize>) -> Scene {
+    let mut s = Scene::empty(name);
+    let mut model = Model { name: name.into(), ..Model::default() };
     let half_tan = (ROMBM_FOV / 2.0).to_radians().tan();
-    for k in 0..RHOMBI {
+    for k in layers {
         let material = s.material(&format!("rhombus {k:02}"), hsv(k as f32 / RHOMBI as f32, 0.65, 0.9));
         let z = ROMBM_SPACING * k as f32;
         // Half the screen's side at this depth; the half diagonals are 1.4 to 1.9

@@ -459,3 +459,40 @@ fn cell_counting_helpers_agree_with_pixel_by_pixel_counting() {
         assert_eq!(a, b);
     }
 }
+
+#[test]
+fn depth_complexity_costs_no_work_with_the_rendering_masks() {
+    // Issue 6: `rombm` (22 layers) may cost at most 1.3x `rhombus` (its top layer
+    // alone) on the same screen. In work, not time: the cells the GQ tests, the
+    // fragments the SPPs take, the pixels the CC colours, with the masks that
+    // rendering uses (all levels, Greene's hierarchical coverage).
+    let screen = Screen { width: 1920, height: 1080 };
+    let counters = |name: &str| {
+        let mut scene = builtin::scene(name).unwrap();
+        scene.screen = screen;
+        let frame = gp::frame_of_scene(&Database::new(scene), &GpConfig::default()).0;
+        let config = albatros::vp::VpConfig { stats: true, ..albatros::vp::VpConfig::default() };
+        let mut vp = albatros::vp::VideoProcessor::new(screen.width, screen.height, config);
+        vp.render_frame(&frame);
+        vp.counters.clone()
+    };
+    let (many, one) = (counters("rombm"), counters("rhombus"));
+    let colored = |c: &Counters| c.color.pixels_per_channel.iter().sum::<u64>();
+    let ratios = [
+        ("cells tested", many.cells_tested() as f64 / one.cells_tested() as f64),
+        ("SPP fragments", many.spp.fragments as f64 / one.spp.fragments as f64),
+        ("CC pixels", colored(&many) as f64 / colored(&one) as f64),
+    ];
+    println!("rombm / rhombus at 1920x1080: {ratios:?}");
+    for (what, r) in ratios {
+        assert!(r <= 1.3, "{what}: rombm does {r:.2}x the work of one rhombus");
+    }
+    // And without the masks the depth complexity does cost: the measure can fail.
+    let config = albatros::vp::VpConfig { stats: true, masks: MaskLevels::NONE, ..albatros::vp::VpConfig::default() };
+    let mut scene = builtin::scene("rombm").unwrap();
+    scene.screen = screen;
+    let frame = gp::frame_of_scene(&Database::new(scene), &GpConfig::default()).0;
+    let mut vp = albatros::vp::VideoProcessor::new(screen.width, screen.height, config);
+    vp.render_frame(&frame);
+    assert!(vp.counters.spp.fragments as f64 > 5.0 * one.spp.fragments as f64);
+}
