@@ -65,6 +65,12 @@ impl<'a> ColorComputers<'a> {
 
     /// Colours the visible pixels of one cell of polygon `poly` into `out` (pixels
     /// with no visible subpixel are left alone).
+    ///
+    /// Laid out as arrays over the 16 pixels, so that the arithmetic vectorises;
+    /// every pixel gets the same operations in the same order as one computed alone
+    /// would (the stepping `Q + A dx + B dy`, the reciprocal, the products), so the
+    /// colours are bit for bit those of a pixel-by-pixel loop. Only `exp` (and the
+    /// texture unit's reads and `log2`) go pixel by pixel, for the visible pixels.
     pub fn shade<const STATS: bool>(
         &self,
         poly: &FramePolygon,
@@ -72,6 +78,7 @@ impl<'a> ColorComputers<'a> {
         out: &mut [Vec3; 16],
         counters: &mut Counters,
     ) {
+        let visible = crate::model::stats::visible_pixels(&vis.sets);
         // Q: centre of the cell's pixel (1, 1).
         let (qx, qy) = (vis.px as f32 + 1.5, vis.py as f32 + 1.5);
         let z_q = poly.inv_z.eval(qx, qy);
@@ -80,31 +87,53 @@ impl<'a> ColorComputers<'a> {
         let texture: Option<(&PolyTexture, &TextureMap)> =
             poly.texture.as_ref().and_then(|t| Some((t, self.textures.get(t.map)?)));
         let (u_q, v_q) = texture.map_or((0.0, 0.0), |(t, _)| (t.u.eval(qx, qy), t.v.eval(qx, qy)));
-        for (i, c) in out.iter_mut().enumerate() {
-            if vis.sets[i] == 0 {
-                continue;
+        // `Z` and intensity, stepped from Q (P2 fig. 2).
+        let z: [f32; 16] = std::array::from_fn(|i| {
+            let inv_z = z_q + poly.inv_z.a * STEP_X[i] + poly.inv_z.b * STEP_Y[i];
+            1.0 / inv_z.max(f32::MIN_POSITIVE)
+        });
+        let intensity: [f32; 16] = std::array::from_fn(|i| {
+            ((i_q + poly.intensity.a * STEP_X[i] + poly.intensity.b * STEP_Y[i]) * z[i]).max(0.0)
+        });
+        // C0, per component.
+        let c0: [[f32; 16]; 3] = match texture {
+            Some((t, map)) => {
+                let u = std::array::from_fn(|i| (u_q + t.u.a * STEP_X[i] + t.u.b * STEP_Y[i]) * z[i]);
+                let v = std::array::from_fn(|i| (v_q + t.v.a * STEP_X[i] + t.v.b * STEP_Y[i]) * z[i]);
+                let footprint = std::array::from_fn(|i| self.footprint_scale * z[i] * z[i] * t.par);
+                let m = map.sample_cell(&u, &v, &footprint, visible);
+                let (c1, c2) = (t.color1.to_array(), t.color2.to_array());
+                std::array::from_fn(|c| std::array::from_fn(|i| c1[c] * m[i] + c2[c] * (1.0 - m[i])))
             }
-            let dx = (i & 3) as f32 - 1.0;
-            let dy = (i >> 2) as f32 - 1.0;
-            let inv_z = z_q + poly.inv_z.a * dx + poly.inv_z.b * dy;
-            let z = 1.0 / inv_z.max(f32::MIN_POSITIVE);
-            let intensity = ((i_q + poly.intensity.a * dx + poly.intensity.b * dy) * z).max(0.0);
-            let c0 = match texture {
-                Some((t, map)) => {
-                    let u = (u_q + t.u.a * dx + t.u.b * dy) * z;
-                    let v = (v_q + t.v.a * dx + t.v.b * dy) * z;
-                    let footprint = self.footprint_scale * z * z * t.par;
-                    let m = map.sample(u, v, footprint);
-                    t.color1 * m + t.color2 * (1.0 - m)
-                }
-                None => poly.color,
-            };
-            let base = c0 * intensity;
-            let f = (-z * self.inv_visibility).exp();
-            *c = base * f + self.fog_color * (1.0 - f);
+            None => poly.color.to_array().map(|c| [c; 16]),
+        };
+        // Fog: `exp(-0)` is 1 exactly, so no fog needs no `exp`.
+        let mut f = [1.0f32; 16];
+        if self.inv_visibility != 0.0 {
+            let arg: [f32; 16] = std::array::from_fn(|i| -z[i] * self.inv_visibility);
+            let mut lanes = visible;
+            while lanes != 0 {
+                let i = lanes.trailing_zeros() as usize & 15;
+                lanes &= lanes - 1;
+                f[i] = arg[i].exp();
+            }
+        }
+        let fog = self.fog_color.to_array();
+        let c: [[f32; 16]; 3] =
+            std::array::from_fn(|c| std::array::from_fn(|i| c0[c][i] * intensity[i] * f[i] + fog[c] * (1.0 - f[i])));
+        for (i, px) in out.iter_mut().enumerate() {
+            if visible & (1 << i) != 0 {
+                *px = Vec3::new(c[0][i], c[1][i], c[2][i]);
+            }
         }
         if STATS {
-            counters.count_cc_cell(crate::model::stats::visible_pixels(&vis.sets), texture.is_some());
+            counters.count_cc_cell(visible, texture.is_some());
         }
     }
 }
+
+/// `dx` of pixel `i` (`4 y + x`) of a cell from Q, its pixel (1, 1).
+const STEP_X: [f32; 16] = [-1.0, 0.0, 1.0, 2.0, -1.0, 0.0, 1.0, 2.0, -1.0, 0.0, 1.0, 2.0, -1.0, 0.0, 1.0, 2.0];
+
+/// `dy` of pixel `i` (`4 y + x`) of a cell from Q.
+const STEP_Y: [f32; 16] = [-1.0, -1.0, -1.0, -1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0, 2.0, 2.0, 2.0, 2.0];

@@ -166,11 +166,22 @@ impl TextureMap {
         // Texel centres sit at (i + 1/2) / side.
         let (i0, ku) = split(fract01(u) * side - 0.5);
         let (j0, kv) = split(fract01(v) * side - 0.5);
-        let t1 = f32::from(self.texel(k, i0, j0));
-        let t2 = f32::from(self.texel(k, i0, j0 + 1));
-        let t3 = f32::from(self.texel(k, i0 + 1, j0));
-        let t4 = f32::from(self.texel(k, i0 + 1, j0 + 1));
-        ((1.0 - ku) * ((1.0 - kv) * t1 + kv * t2) + ku * ((1.0 - kv) * t3 + kv * t4)) / TEXEL_ONE
+        let [t1, t2, t3, t4] = self.quad(k, i0, j0).map(f32::from);
+        eq3(ku, kv, t1, t2, t3, t4)
+    }
+
+    /// The texels `T1..T4` of P2 eq. (3) for the texel centres `(i0, j0)` to
+    /// `(i0 + 1, j0 + 1)` of level `k` (at most `n`), wrapped: `[T1, T2, T3, T4]` =
+    /// `(i0, j0)`, `(i0, j0 + 1)`, `(i0 + 1, j0)`, `(i0 + 1, j0 + 1)`. The level's
+    /// offset, side and mask are found once for the four.
+    #[inline]
+    fn quad(&self, k: u32, i0: i32, j0: i32) -> [u8; 4] {
+        let log2_side = self.log2_side - k;
+        let mask = (1i32 << log2_side) - 1;
+        let level = &self.texels[self.offsets[k as usize]..];
+        let (c0, c1) = ((i0 & mask) as usize, (i0.wrapping_add(1) & mask) as usize);
+        let (r0, r1) = (((j0 & mask) as usize) << log2_side, ((j0.wrapping_add(1) & mask) as usize) << log2_side);
+        [level[r0 + c0], level[r1 + c0], level[r0 + c1], level[r1 + c1]]
     }
 
     /// The level of detail for a footprint of `footprint` periods (P2's `S/L`): `log2`
@@ -203,6 +214,145 @@ impl TextureMap {
     pub fn sample(&self, u: f32, v: f32, footprint: f32) -> f32 {
         self.trilinear(u, v, self.lod(footprint))
     }
+
+    /// [`Self::sample`] for the pixels of a cell at once: lane `i` of the result is
+    /// `self.sample(u[i], v[i], footprint[i])`, bit for bit, for every lane whose bit
+    /// is set in `lanes`; the other lanes are not sampled (their values mean nothing).
+    ///
+    /// The same operations as [`Self::sample`] lane by lane, in the same order, laid
+    /// out as arrays over the lanes so that the arithmetic vectorises: only `log2`
+    /// and the texel reads go lane by lane. Both levels' look-ups share the
+    /// fractional parts of `u`, `v`.
+    pub fn sample_cell(
+        &self,
+        u: &[f32; CELL_LANES],
+        v: &[f32; CELL_LANES],
+        footprint: &[f32; CELL_LANES],
+        lanes: u16,
+    ) -> [f32; CELL_LANES] {
+        let n = self.log2_side;
+        // Level of detail ([`Self::lod`]); `log2` only where the clamp does not
+        // settle it.
+        let side = self.side() as f32;
+        let texels: [f32; CELL_LANES] = std::array::from_fn(|i| footprint[i] * side);
+        let (top, beyond) = (n as f32, (2u32 << n) as f32);
+        let mut lod = [0.0f32; CELL_LANES];
+        for i in lane_indices(lanes) {
+            lod[i] = lod_of_texels(texels[i], top, beyond);
+        }
+        // [`Self::trilinear`]: `lod` is already in `0..=n`, so its clamp is the
+        // identity (a zero's sign aside, which changes neither `k` nor `kr`), and
+        // its integer part is its floor.
+        let floor = lod.map(f32::floor);
+        let kr: [f32; CELL_LANES] = std::array::from_fn(|i| lod[i] - floor[i]);
+        let k = floor.map(small_int);
+        // [`Self::bilinear`] in levels `k` and `k + 1` (`k` again at the last level,
+        // where `kr` is 0 and the coarse value drops out of the blend).
+        let fu = u.map(fract01);
+        let fv = v.map(fract01);
+        let fine = LevelLookup::new(n, &k, &fu, &fv);
+        let coarse = LevelLookup::new(n, &k.map(|k| (k + 1).min(n as i32)), &fu, &fv);
+        // The texel reads: T1..T4 of both levels.
+        let mut t = [[0u8; CELL_LANES]; 8];
+        for i in lane_indices(lanes) {
+            for (q, index) in fine.index.iter().chain(&coarse.index).enumerate() {
+                t[q][i] = self.texels[index[i] as usize];
+            }
+        }
+        let mut out = [0.0f32; CELL_LANES];
+        for i in 0..CELL_LANES {
+            let [t1, t2, t3, t4, c1, c2, c3, c4] = [0, 1, 2, 3, 4, 5, 6, 7].map(|q| f32::from(t[q][i]));
+            let fine = eq3(fine.ku[i], fine.kv[i], t1, t2, t3, t4);
+            let coarse = eq3(coarse.ku[i], coarse.kv[i], c1, c2, c3, c4);
+            // Where trilinear keeps the fine value alone (`kr` is 0, and it is at the
+            // last level), the blend is that value exactly: both values are finite,
+            // the fine one is not -0, and `fine + 0 * d` is `fine`.
+            out[i] = fine + kr[i] * (coarse - fine);
+        }
+        out
+    }
+}
+
+/// The bilinear look-ups of [`TextureMap::sample_cell`] in one level per lane: the
+/// weights `Ku`, `Kv` and the addresses in the map's texels of `T1..T4` (P2 eq. 3).
+struct LevelLookup {
+    /// `Ku` per lane.
+    ku: [f32; CELL_LANES],
+    /// `Kv` per lane.
+    kv: [f32; CELL_LANES],
+    /// Where `T1, T2, T3, T4` are, per lane ([`TextureMap::quad`]).
+    index: [[u32; CELL_LANES]; 4],
+}
+
+impl LevelLookup {
+    /// The look-ups in level `k[i]` (at most `n`) at the fractional parts
+    /// `fu[i]`, `fv[i]`, as [`TextureMap::bilinear`] makes them.
+    #[inline(always)]
+    fn new(n: u32, k: &[i32; CELL_LANES], fu: &[f32; CELL_LANES], fv: &[f32; CELL_LANES]) -> Self {
+        let mut lookup = Self { ku: [0.0; CELL_LANES], kv: [0.0; CELL_LANES], index: [[0; CELL_LANES]; 4] };
+        let [t1, t2, t3, t4] = &mut lookup.index;
+        for i in 0..CELL_LANES {
+            // The side `2^(n-k)`, exactly `(1 << (n - k)) as f32`, from its bits.
+            let side = f32::from_bits((127 + (n as i32 - k[i]) as u32) << 23);
+            let (i0, ku) = split(fu[i] * side - 0.5);
+            let (j0, kv) = split(fv[i] * side - 0.5);
+            lookup.ku[i] = ku;
+            lookup.kv[i] = kv;
+            let side = small_int(side) as u32;
+            let mask = side - 1;
+            // Level k starts after levels 0..k, `4^n + ... + 4^(n-k+1)` texels:
+            // `(4^(n+1) - 4 side^2) / 3`, an exact division done as the product by
+            // the inverse of 3 modulo 2^32.
+            let start = ((4u32 << (2 * n)) - 4 * side * side).wrapping_mul(0xAAAA_AAAB);
+            let (c0, c1) = (i0 as u32 & mask, (i0 as u32).wrapping_add(1) & mask);
+            let (r0, r1) = ((j0 as u32 & mask) * side + start, ((j0 as u32).wrapping_add(1) & mask) * side + start);
+            (t1[i], t2[i], t3[i], t4[i]) = (r0 + c0, r1 + c0, r0 + c1, r1 + c1);
+        }
+        lookup
+    }
+}
+
+/// `x as i32` for an integral `x` in `-2^22..=2^22`, in operations that vectorise:
+/// adding `1.5 * 2^23` (exact there) puts `x` in the low bits of the mantissa.
+#[inline]
+fn small_int(x: f32) -> i32 {
+    const MAGIC: f32 = 12_582_912.0;
+    (x + MAGIC).to_bits() as i32 - MAGIC.to_bits() as i32
+}
+
+/// The lanes of [`TextureMap::sample_cell`]: the pixels of a 4 x 4 cell.
+pub const CELL_LANES: usize = 16;
+
+/// The indices of the set bits of `lanes`, lowest first.
+#[inline]
+fn lane_indices(mut lanes: u16) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        let i = lanes.trailing_zeros() as usize;
+        lanes &= lanes.wrapping_sub(1);
+        (i < CELL_LANES).then_some(i)
+    })
+}
+
+/// [`TextureMap::lod`] of a footprint of `texels` level-0 texels, `top` = `n`,
+/// `beyond` = `2^(n+1)`, without `log2` where the clamp settles the result: at most
+/// one texel (or NaN) is level 0, since `log2` is then at most 0 (or NaN); from
+/// `2^(n+1)` on it is `n`, since `log2` is then above `n` by far more than its error.
+#[inline]
+fn lod_of_texels(texels: f32, top: f32, beyond: f32) -> f32 {
+    if texels > 1.0 && texels < beyond {
+        texels.log2().max(0.0).min(top)
+    } else if texels > 1.0 {
+        top
+    } else {
+        0.0
+    }
+}
+
+/// P2 eq. (3), `T' = (1 - Ku)((1 - Kv) T1 + Kv T2) + Ku((1 - Kv) T3 + Kv T4)`, in
+/// texel units, scaled to `0..=1`.
+#[inline]
+fn eq3(ku: f32, kv: f32, t1: f32, t2: f32, t3: f32, t4: f32) -> f32 {
+    ((1.0 - ku) * ((1.0 - kv) * t1 + kv * t2) + ku * ((1.0 - kv) * t3 + kv * t4)) / TEXEL_ONE
 }
 
 /// The fractional part of `x` in `0..=1` (1 only by rounding of tiny negatives); NaN
@@ -213,11 +363,12 @@ fn fract01(x: f32) -> f32 {
     (x - x.floor()).max(0.0).min(1.0)
 }
 
-/// Integer part (floor) and fraction of a texel-space coordinate.
+/// Integer part (floor) and fraction of a texel-space coordinate, `s` in
+/// `-0.5..=2^12` (a fractional part times a side, minus a half).
 #[inline]
 fn split(s: f32) -> (i32, f32) {
     let f = s.floor();
-    (f as i32, s - f)
+    (small_int(f), s - f)
 }
 
 /// The texture maps of a scene, indexed like [`Scene::textures`] (a material's
@@ -576,6 +727,86 @@ mod tests {
                 assert!((0.0..=1.0).contains(&t), "u = {x}, footprint = {fp}: {t}");
                 let t = m.sample(0.25, x, fp);
                 assert!((0.0..=1.0).contains(&t), "v = {x}, footprint = {fp}: {t}");
+            }
+        }
+    }
+
+    /// [`TextureMap::sample`] written out plainly, texel by texel, as a reference
+    /// for the faster paths.
+    fn plain_sample(m: &TextureMap, u: f32, v: f32, footprint: f32) -> f32 {
+        let n = m.log2_side();
+        let lod = (footprint * m.side() as f32).log2().max(0.0).min(n as f32);
+        let bilinear = |k: u32| {
+            let side = (1u32 << (n - k)) as f32;
+            let s = fract01(u) * side - 0.5;
+            let t = fract01(v) * side - 0.5;
+            let (i0, ku) = (s.floor() as i32, s - s.floor());
+            let (j0, kv) = (t.floor() as i32, t - t.floor());
+            let [t1, t2, t3, t4] =
+                [(i0, j0), (i0, j0 + 1), (i0 + 1, j0), (i0 + 1, j0 + 1)].map(|(i, j)| f32::from(m.texel(k, i, j)));
+            ((1.0 - ku) * ((1.0 - kv) * t1 + kv * t2) + ku * ((1.0 - kv) * t3 + kv * t4)) / TEXEL_ONE
+        };
+        let k = lod as u32;
+        let kr = lod - k as f32;
+        let fine = bilinear(k);
+        if kr == 0.0 || k >= n {
+            return fine;
+        }
+        fine + kr * (bilinear(k + 1) - fine)
+    }
+
+    #[test]
+    fn cell_sampling_is_sampling_bit_for_bit() {
+        // Ordinary points, footprints across the pyramid (the clamped ends and the
+        // levels between), and the inputs sampling must survive.
+        let mut h = 0x1234_5678u32;
+        let mut next = || {
+            h = hash(h, 7, 11);
+            unit(h)
+        };
+        let odd = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -1e30, 1e30, -1e-12, 0.0, -0.0, 0.999_999_9];
+        for map in [ramp(1), ramp(2), ramp(16), builtin("grass").unwrap(), TextureMap::build(12, vec![9; 1 << 24])] {
+            let scale = map.side() as f32;
+            for round in 0..400 {
+                let u: [f32; CELL_LANES] = std::array::from_fn(|i| match round % 4 {
+                    0 => odd[(i + round) % odd.len()],
+                    _ => (next() - 0.5) * 40.0,
+                });
+                let v: [f32; CELL_LANES] = std::array::from_fn(|_| (next() - 0.5) * 40.0);
+                let footprint: [f32; CELL_LANES] = std::array::from_fn(|i| match round % 3 {
+                    0 if i % 5 == 0 => odd[(i + round) % odd.len()],
+                    _ => (next() * 30.0 - 15.0).exp2() / scale,
+                });
+                let lanes = (next() * 65536.0) as u16 | 1;
+                let t = map.sample_cell(&u, &v, &footprint, lanes);
+                for i in 0..CELL_LANES {
+                    if lanes & (1 << i) != 0 {
+                        let expect = plain_sample(&map, u[i], v[i], footprint[i]);
+                        assert_eq!(
+                            t[i].to_bits(),
+                            expect.to_bits(),
+                            "{map:?} u {} v {} fp {}",
+                            u[i],
+                            v[i],
+                            footprint[i]
+                        );
+                        assert_eq!(map.sample(u[i], v[i], footprint[i]).to_bits(), expect.to_bits());
+                    }
+                }
+            }
+            // Exact powers of two and their neighbours: the clamp's edges.
+            for e in -3..=14 {
+                let x = (e as f32).exp2() / scale;
+                let fp: [f32; CELL_LANES] = std::array::from_fn(|i| match i % 3 {
+                    0 => x,
+                    1 => f32::from_bits(x.to_bits() + 1),
+                    _ => f32::from_bits(x.to_bits() - 1),
+                });
+                let (u, v) = ([0.3; CELL_LANES], [0.7; CELL_LANES]);
+                let t = map.sample_cell(&u, &v, &fp, u16::MAX);
+                for i in 0..CELL_LANES {
+                    assert_eq!(t[i].to_bits(), plain_sample(&map, 0.3, 0.7, fp[i]).to_bits());
+                }
             }
         }
     }
