@@ -31,7 +31,9 @@
 //!   Cost, measured on the default scene (1024 x 768, `vb_cost` in the tests): F1
 //!   takes about 19 ns per pixel write against 5 for the float path, the whole
 //!   `render_frame` about 14% more; the readout is faster (18 ms against 22: integer
-//!   tables against float rounding).
+//!   tables against float rounding). Since then the log readout has become about
+//!   three times faster (rombm, 1920 x 1080, one thread: it skips the half sums of
+//!   equal neighbours and runs without branches or bounds checks).
 //! - [`VbMode::Float`]: `f32` accumulators, the reference.
 //! - [`VbMode::Linear`]: a linear fixed-point code of the same width, what P1's log
 //!   scale replaced; kept to measure the contouring it avoids.
@@ -78,11 +80,17 @@
 //!   its entries round to 0 (and reads 0 beyond), after `~4 K ln(8 K)` entries: 988
 //!   entries of 7 bits for 8 bits, 9287 of 10 bits for 12. Sum (eq. 4):
 //!   `hi + T[hi - lo]`; mean (F2): `hi + T[hi - lo] - T[0]` (`T[0]` = `4 K ln 2`).
+//!   F1 and F2 read a copy padded with zeros to `2^14` entries at index
+//!   `min(hi - lo, 2^14 - 1)`: the same value for every difference, with neither a
+//!   bounds check nor a branch at the table's end.
 //! - **Gamma** ([`LogScale::gamma_table`], `u8`): index an F2 result in quarter codes,
 //!   `0 ..= 4 Q1` (`b + 2` bits: 1021 entries for 8 bits), entry
 //!   `round(255 c^(1/gamma))` with `c = exp(alpha (i/4 - Q1))` and 0 for zero (index
 //!   below 4). It depends on the readout's gamma, so each readout builds it (1021
-//!   powers for 8 bits, microseconds).
+//!   powers for 8 bits, microseconds; once for all the bands of a parallel
+//!   readout). The readout pads it with zeros to `2^14` entries and addresses it
+//!   with the F2 result masked to 14 bits: every result is in `0 ..= 4 Q1` (kept)
+//!   or zero's [`LogFine::ZERO`], `-2^24` (masked to 0).
 //! - **Encoder** ([`LogScale::encoder_table`], `(u32, u16)`): the CC's output
 //!   converter. The CC hands the VB a `b`-bit code per component (P1: a 24-bit colour
 //!   word); in this model the CC computes in `f32` and the conversion is the first
@@ -138,6 +146,14 @@ const OUTPUT_MAX: f64 = 255.0;
 const HALF_CODE: f32 = 0.5;
 /// Quarter codes per code.
 const FINE_PER_CODE: i32 = 1 << LOG_FRAC_BITS;
+/// Entries of the padded `ln(1 + e^x)` table the hot loops read (module docs: "The
+/// tables"): more than the longest table (9287 entries for 12 bits), a power of two.
+const SOFTPLUS_PADDED: usize = 1 << 14;
+/// Entries of the padded gamma table of the fixed-point readouts: more than the
+/// largest address (`4 Q1 = 16380` for 12 bits), a power of two that divides
+/// `-LogFine::ZERO`, so that an address masked with `GAMMA_PADDED - 1` is itself and
+/// zero's is 0.
+const GAMMA_PADDED: usize = 1 << 14;
 
 /// How the video memory stores a colour component.
 ///
@@ -287,6 +303,9 @@ pub struct LogScale {
     ln_area: [i32; AREA_DENOMINATOR as usize],
     /// `round(4 K ln(1 + exp(-i / 4K)))`, index `i >= 0`, until it rounds to 0.
     softplus: Vec<u16>,
+    /// The same padded with zeros to [`SOFTPLUS_PADDED`] entries: index `d.min(SOFTPLUS_PADDED - 1)`
+    /// reads `T[d]` for every `d >= 0`, with no bounds check.
+    softplus_padded: Box<[u16; SOFTPLUS_PADDED]>,
     /// `T[0] = round(4 K ln 2)`: halving in quarter codes.
     ln2: i32,
 }
@@ -316,6 +335,9 @@ impl LogScale {
             .take_while(|&t| t > 0)
             .collect();
         let ln2 = i32::from(softplus[0]);
+        assert!(softplus.len() < SOFTPLUS_PADDED, "the padded table ends in a zero");
+        let mut softplus_padded = Box::new([0; SOFTPLUS_PADDED]);
+        softplus_padded[..softplus.len()].copy_from_slice(&softplus);
         let mut scale = Self {
             bits,
             one,
@@ -326,6 +348,7 @@ impl LogScale {
             encoder: Vec::new(),
             ln_area,
             softplus,
+            softplus_padded,
             ln2,
         };
         scale.build_encoder();
@@ -542,6 +565,73 @@ fn round_half_even(v: i32, shift: u32) -> i32 {
     whole + i32::from(frac > half || (frac == half && whole & 1 == 1))
 }
 
+/// The log arithmetic of F1 and F2 as their loops run it: [`LogScale`]'s `sum`,
+/// `mean` and `store` with the scale's registers in locals, the padded `ln(1 + e^x)`
+/// table (no bounds check, no branch at its end) and no branches on the operands'
+/// range. The same results as [`LogScale`]'s, bit for bit (checked exhaustively in
+/// the tests).
+#[derive(Clone, Copy)]
+struct LogArith<'a> {
+    /// `T` padded with zeros ([`LogScale::softplus_padded`]).
+    softplus: &'a [u16; SOFTPLUS_PADDED],
+    /// `T[0] = 4 K ln 2`.
+    ln2: i32,
+    /// The smallest value stored as code 1, `4 - T[0]` (below it: zero).
+    floor: i32,
+    /// `Q1`.
+    one: i32,
+}
+
+impl<'a> LogArith<'a> {
+    fn new(scale: &'a LogScale) -> Self {
+        Self { softplus: &scale.softplus_padded, ln2: scale.ln2, floor: FINE_PER_CODE - scale.ln2, one: scale.one }
+    }
+
+    /// `T[d]`, `d >= 0`: the padded table at `d`, or at its last entry (a zero)
+    /// for any `d` past it.
+    #[inline(always)]
+    fn softplus(self, d: i32) -> i32 {
+        debug_assert!(d >= 0, "the table's index is max - min");
+        i32::from(self.softplus[(d as u32 as usize).min(SOFTPLUS_PADDED - 1)])
+    }
+
+    /// P1 eq. (4), [`LogScale::sum`]: `hi + T[hi - lo]`.
+    #[inline(always)]
+    fn sum(self, a: i32, b: i32) -> i32 {
+        let (hi, lo) = (a.max(b), a.min(b));
+        hi + self.softplus(hi - lo)
+    }
+
+    /// F2's half sum, [`LogScale::mean`], of two of F2's operands: each
+    /// [`LogFine::ZERO`] or at least code 1 (a loaded code or an earlier mean).
+    /// `v = hi + T[hi - lo] - T[0]` is then at least `4 - T[0]` unless both are zero
+    /// (`T` is at most `T[0]`), and exactly `ZERO` if they are: the mean is `ZERO`
+    /// for two zeros, else `v` raised to code 1. Equal operands give themselves.
+    #[inline(always)]
+    fn mean(self, a: i32, b: i32) -> i32 {
+        debug_assert!(
+            [a, b].iter().all(|&v| v == LogFine::ZERO.0 || v >= FINE_PER_CODE),
+            "F2's operands are zero or at least code 1"
+        );
+        let (hi, lo) = (a.max(b), a.min(b));
+        (hi + self.softplus(hi - lo) - self.ln2).max(hi.min(FINE_PER_CODE))
+    }
+
+    /// The VMEM word of a value, [`LogScale::store`]: rounded half to even,
+    /// `(v + 1 + the whole code's low bit) >> 2`, clamped to `1..=Q1` (below code 1 that
+    /// rounding gives at most 1); zero below `4 - T[0]`.
+    #[inline(always)]
+    fn store(self, v: i32) -> u16 {
+        let rounded = (v + (FINE_PER_CODE / 2 - 1) + ((v >> LOG_FRAC_BITS) & 1)) >> LOG_FRAC_BITS;
+        let code = rounded.clamp(1, self.one) as u16;
+        if v >= self.floor {
+            code
+        } else {
+            0
+        }
+    }
+}
+
 /// The linear fixed-point code of one bit count (module docs: "The linear code").
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct LinearScale {
@@ -685,15 +775,27 @@ impl VideoBuffer {
                 let a = &mut accum[p];
                 *a = if first { c } else { *a + c };
             }),
-            Memory::Log { scale, codes } => for_visible(vis, width, |p, n, first, i| {
-                let c = colors[i].to_array();
-                let word = &mut codes[p];
-                for ch in 0..3 {
-                    let v = scale.weigh(scale.encode(c[ch]), n);
-                    let v = if first { v } else { scale.sum(v, LogFine::from_code(word[ch])) };
-                    word[ch] = scale.store(v);
-                }
-            }),
+            Memory::Log { scale, codes } => {
+                let scale: &LogScale = scale;
+                let arith = LogArith::new(scale);
+                for_visible(vis, width, |p, n, first, i| {
+                    let c = colors[i].to_array();
+                    let word = &mut codes[p];
+                    if first && n == AREA_DENOMINATOR {
+                        // A whole pixel's first fragment: eq. (3) adds ln 1 = 0, and the
+                        // store of a whole code is the code.
+                        *word = c.map(|c| scale.encode(c));
+                        return;
+                    }
+                    // Eq. (3)'s ln S, `n` in 1..=16.
+                    let ln_s = scale.ln_area[(n as usize - 1) & (AREA_DENOMINATOR as usize - 1)];
+                    for (w, c) in word.iter_mut().zip(c) {
+                        let v = LogFine::from_code(scale.encode(c)).0 + ln_s;
+                        let v = if first { v } else { arith.sum(v, LogFine::from_code(*w).0) };
+                        *w = arith.store(v);
+                    }
+                })
+            }
             Memory::Linear { scale, codes } => for_visible(vis, width, |p, n, first, i| {
                 let c = colors[i].to_array();
                 let word = &mut codes[p];
@@ -737,9 +839,11 @@ impl VideoBuffer {
         let (w, h) = (self.width as usize, self.height as usize);
         let mut pixels = vec![0u8; w * h * 3];
         let band = READOUT_BAND_ROWS;
+        // One gamma table for all the bands.
+        let table = self.gamma_table(opts);
         pixels.par_chunks_mut(band * w * 3).enumerate().for_each(|(k, out)| {
             let y0 = k * band;
-            self.read_out_rows(opts, y0..(y0 + band).min(h), out);
+            self.read_out_rows_with(opts, &table, y0..(y0 + band).min(h), out);
         });
         Image { width: self.width, height: self.height, pixels }
     }
@@ -747,14 +851,31 @@ impl VideoBuffer {
     /// Reads out rows `rows` (F2 uses the row below the last one) into `out`, RGB8,
     /// `3 * width * rows.len()` bytes.
     pub fn read_out_rows(&self, opts: &Readout, rows: std::ops::Range<usize>, out: &mut [u8]) {
+        self.read_out_rows_with(opts, &self.gamma_table(opts), rows, out);
+    }
+
+    /// The mode's gamma table for `opts` (the fixed-point ones padded to
+    /// [`GAMMA_PADDED`] entries).
+    fn gamma_table(&self, opts: &Readout) -> Vec<u8> {
+        match &self.memory {
+            Memory::Float(_) => gamma_table(opts.gamma),
+            Memory::Log { scale, .. } => padded(scale.gamma_table(opts.gamma)),
+            Memory::Linear { scale, .. } => padded(scale.gamma_table(opts.gamma)),
+        }
+    }
+
+    /// [`Self::read_out_rows`] with the table of [`Self::gamma_table`].
+    fn read_out_rows_with(&self, opts: &Readout, table: &[u8], rows: std::ops::Range<usize>, out: &mut [u8]) {
         let (w, h) = (self.width as usize, self.height as usize);
         match &self.memory {
-            Memory::Float(accum) => read_out_float(w, h, accum, opts, rows, out),
+            Memory::Float(accum) => read_out_float(w, h, accum, opts, table, rows, out),
             Memory::Log { scale, codes } => {
-                read_out_fine(w, h, codes, opts.filter, *scale, &scale.gamma_table(opts.gamma), rows, out)
+                let table = table.try_into().expect("a padded gamma table");
+                read_out_fine(w, h, codes, opts.filter, LogArith::new(scale), table, rows, out)
             }
             Memory::Linear { scale, codes } => {
-                read_out_fine(w, h, codes, opts.filter, scale, &scale.gamma_table(opts.gamma), rows, out)
+                let table = table.try_into().expect("a padded gamma table");
+                read_out_fine(w, h, codes, opts.filter, *scale, table, rows, out)
             }
         }
     }
@@ -845,8 +966,15 @@ fn for_visible(vis: &Visible, width: usize, mut f: impl FnMut(usize, u32, bool, 
 }
 
 /// The float path's readout: F2 in `f32`, then the gamma table over `0..=1`.
-fn read_out_float(w: usize, h: usize, accum: &[Vec3], opts: &Readout, rows: std::ops::Range<usize>, out: &mut [u8]) {
-    let table = gamma_table(opts.gamma);
+fn read_out_float(
+    w: usize,
+    h: usize,
+    accum: &[Vec3],
+    opts: &Readout,
+    table: &[u8],
+    rows: std::ops::Range<usize>,
+    out: &mut [u8],
+) {
     let mut line = vec![Vec3::ZERO; w];
     let mut pixels = out.chunks_exact_mut(3);
     for y in rows {
@@ -868,85 +996,98 @@ fn read_out_float(w: usize, h: usize, accum: &[Vec3], opts: &Readout, rows: std:
 }
 
 /// The arithmetic of F2 on a fixed-point code, in quarter codes.
-trait QuarterCodes {
+trait QuarterCodes: Copy {
     /// A stored code as a quarter-code value.
-    fn load(&self, q: u16) -> i32;
-    /// The half sum of two values.
-    fn mean(&self, a: i32, b: i32) -> i32;
-    /// The gamma table's address of a value.
-    fn address(&self, v: i32) -> usize;
+    fn load(self, q: u16) -> i32;
+    /// The half sum of two values (loaded codes or earlier half sums); the mean of
+    /// a value with itself is the value.
+    fn mean(self, a: i32, b: i32) -> i32;
 }
 
-impl QuarterCodes for LogScale {
-    #[inline]
-    fn load(&self, q: u16) -> i32 {
+impl QuarterCodes for LogArith<'_> {
+    #[inline(always)]
+    fn load(self, q: u16) -> i32 {
         LogFine::from_code(q).0
     }
 
-    #[inline]
-    fn mean(&self, a: i32, b: i32) -> i32 {
-        LogScale::mean(self, LogFine(a), LogFine(b)).0
-    }
-
-    #[inline]
-    fn address(&self, v: i32) -> usize {
-        // Zero is far below 0; every other result is at least code 1.
-        v.max(0) as usize
+    #[inline(always)]
+    fn mean(self, a: i32, b: i32) -> i32 {
+        LogArith::mean(self, a, b)
     }
 }
 
 impl QuarterCodes for LinearScale {
-    #[inline]
-    fn load(&self, q: u16) -> i32 {
+    #[inline(always)]
+    fn load(self, q: u16) -> i32 {
         i32::from(q) << LOG_FRAC_BITS
     }
 
-    #[inline]
-    fn mean(&self, a: i32, b: i32) -> i32 {
+    #[inline(always)]
+    fn mean(self, a: i32, b: i32) -> i32 {
         // Exact: the first pass's sums are even in quarter codes.
         (a + b) >> 1
     }
+}
 
-    #[inline]
-    fn address(&self, v: i32) -> usize {
-        v as usize
-    }
+/// A fixed-point gamma table padded with zeros to [`GAMMA_PADDED`] entries.
+fn padded(mut table: Vec<u8>) -> Vec<u8> {
+    debug_assert!(table.len() <= GAMMA_PADDED, "addresses up to 4 Q1 < GAMMA_PADDED");
+    table.resize(GAMMA_PADDED, 0);
+    table
 }
 
 /// The fixed-point paths' readout: F2 on quarter codes, then the gamma table.
+///
+/// The gamma table's address of a result is the result masked with
+/// `GAMMA_PADDED - 1`: every result is zero's code or in `0..=4 Q1`, so the mask
+/// keeps it as it is and takes [`LogFine::ZERO`] to 0. Where two operands of a half
+/// sum are equal (flat areas) the mean is the operand and is not computed.
 #[allow(clippy::too_many_arguments, reason = "the readout's registers, passed as they are")]
 fn read_out_fine(
     w: usize,
     h: usize,
     codes: &[[u16; 3]],
     filter: bool,
-    f2: &impl QuarterCodes,
-    table: &[u8],
+    f2: impl QuarterCodes,
+    table: &[u8; GAMMA_PADDED],
     rows: std::ops::Range<usize>,
     out: &mut [u8],
 ) {
+    if w == 0 || rows.is_empty() {
+        return;
+    }
+    assert!(out.len() >= 3 * w * rows.len(), "out holds the rows");
+    let gamma = |v: i32| table[v as usize & (GAMMA_PADDED - 1)];
     let mut line = vec![[0i32; 3]; w];
-    let mut pixels = out.chunks_exact_mut(3);
-    for y in rows {
-        let below = (y + 1).min(h - 1);
+    for (y, out_row) in rows.zip(out.chunks_exact_mut(3 * w)) {
+        let row = &codes[y * w..][..w];
+        if !filter {
+            for (px, word) in out_row.chunks_exact_mut(3).zip(row) {
+                for (o, &q) in px.iter_mut().zip(word) {
+                    *o = gamma(f2.load(q));
+                }
+            }
+            continue;
+        }
+        let below = &codes[(y + 1).min(h - 1) * w..][..w];
         // Pass 1: half sums of vertically adjacent pixels (the line buffer).
-        for (x, l) in line.iter_mut().enumerate() {
-            let (a, b) = (codes[y * w + x], codes[below * w + x]);
-            *l = if filter {
-                std::array::from_fn(|ch| f2.mean(f2.load(a[ch]), f2.load(b[ch])))
-            } else {
+        for ((l, a), b) in line.iter_mut().zip(row).zip(below) {
+            *l = if a == b {
                 a.map(|q| f2.load(q))
+            } else {
+                std::array::from_fn(|ch| f2.mean(f2.load(a[ch]), f2.load(b[ch])))
             };
         }
-        // Pass 2: half sums of horizontally adjacent ones.
-        for x in 0..w {
-            let (a, b) = (line[x], line[(x + 1).min(w - 1)]);
-            let px = pixels.next().expect("out holds the rows");
-            for ch in 0..3 {
-                let v = if filter { f2.mean(a[ch], b[ch]) } else { a[ch] };
-                px[ch] = table[f2.address(v)];
+        // Pass 2: half sums of horizontally adjacent ones; the last column's own
+        // value stands in for its right neighbour, and its mean with itself is itself.
+        let (row_out, last) = out_row.split_last_chunk_mut::<3>().expect("a row holds a pixel");
+        for ((px, &a), &b) in row_out.chunks_exact_mut(3).zip(&line).zip(&line[1..]) {
+            let c = if a == b { a } else { std::array::from_fn(|ch| f2.mean(a[ch], b[ch])) };
+            for (o, v) in px.iter_mut().zip(c) {
+                *o = gamma(v);
             }
         }
+        *last = line[w - 1].map(gamma);
     }
 }
 
@@ -959,4 +1100,209 @@ pub fn gamma_table(gamma: f32) -> Vec<u8> {
             (OUTPUT_MAX * x.powf(1.0 / f64::from(gamma))).round() as u8
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// xorshift64*, for test inputs.
+    struct Rng(u64);
+
+    impl Rng {
+        fn next(&mut self) -> u64 {
+            self.0 ^= self.0 >> 12;
+            self.0 ^= self.0 << 25;
+            self.0 ^= self.0 >> 27;
+            self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+        }
+
+        /// A code, zero about one time in eight.
+        fn code(&mut self, one: u16) -> u16 {
+            let r = self.next();
+            if r % 8 == 0 {
+                0
+            } else {
+                (r >> 8) as u16 % one + 1
+            }
+        }
+    }
+
+    /// F2's operands of a bit count: zero and every quarter code from code 1 to Q1,
+    /// all of them (8 and 9 bits) or every `step`-th (plus both ends).
+    fn f2_operands(s: &LogScale, step: usize) -> Vec<i32> {
+        let top = 4 * s.one;
+        let mut v: Vec<i32> = (FINE_PER_CODE..=top).step_by(step).collect();
+        v.extend([LogFine::ZERO.0, FINE_PER_CODE, FINE_PER_CODE + 1, top - 1, top]);
+        v
+    }
+
+    /// The hot loops' log arithmetic gives [`LogScale`]'s results bit for bit.
+    #[test]
+    fn log_arith_matches_log_scale() {
+        for bits in VB_BITS_MIN..=VB_BITS_MAX {
+            let s = LogScale::get(bits);
+            let f = LogArith::new(s);
+            assert_eq!(&s.softplus_padded[..s.softplus.len()], &s.softplus[..]);
+            // F2's mean, on all pairs of its operands (8, 9 bits) or many.
+            let all = f2_operands(s, 1);
+            let some = f2_operands(s, if bits <= 9 { 1 } else { 61 });
+            for &a in &all {
+                for &b in &some {
+                    let m = f.mean(a, b);
+                    assert_eq!(m, s.mean(LogFine(a), LogFine(b)).0, "log{bits}: mean({a}, {b})");
+                    assert_eq!(m, f.mean(b, a));
+                }
+                assert_eq!(f.mean(a, a), a, "log{bits}: mean({a}, {a})");
+            }
+            // Eq. (4) and the store, on every weighted code (eq. 3) and stored word.
+            let codes: Vec<u16> = (0..=s.one as u16).step_by(if bits <= 9 { 1 } else { 7 }).chain([s.one()]).collect();
+            for &q in &codes {
+                for n in 1..=AREA_DENOMINATOR {
+                    let v = s.weigh(q, n);
+                    assert_eq!(f.store(v.0), s.store(v), "log{bits}: store({v:?})");
+                    for &stored in &codes {
+                        let b = LogFine::from_code(stored);
+                        let sum = f.sum(v.0, b.0);
+                        assert_eq!(sum, s.sum(v, b).0, "log{bits}: sum({v:?}, {b:?})");
+                        assert_eq!(f.store(sum), s.store(s.sum(v, b)));
+                    }
+                }
+                // A whole pixel's first fragment stores its code.
+                assert_eq!(s.store(s.weigh(q, AREA_DENOMINATOR)), q);
+            }
+            // The store on every value from far below zero's code to far above Q1.
+            for v in (LogFine::ZERO.0 - 5000..LogFine::ZERO.0 + 5000).chain(-20_000..20_000) {
+                assert_eq!(f.store(v), s.store(LogFine(v)), "log{bits}: store({v})");
+            }
+        }
+    }
+
+    /// The readout as it was first written (P1's arithmetic, one operation at a
+    /// time), to compare the fast one with.
+    fn reference_read_out(w: usize, h: usize, codes: &[[u16; 3]], filter: bool, mode: VbMode, gamma: f32) -> Vec<u8> {
+        type Load = Box<dyn Fn(u16) -> i32>;
+        type Mean = Box<dyn Fn(i32, i32) -> i32>;
+        let (load, mean, table): (Load, Mean, Vec<u8>) = match mode {
+            VbMode::Log { bits } => {
+                let s = LogScale::get(bits);
+                (
+                    Box::new(|q| LogFine::from_code(q).0),
+                    Box::new(move |a, b| s.mean(LogFine(a), LogFine(b)).0),
+                    s.gamma_table(gamma),
+                )
+            }
+            VbMode::Linear { bits } => {
+                let s = LinearScale::new(bits);
+                (Box::new(|q| i32::from(q) << 2), Box::new(|a, b| (a + b) >> 1), s.gamma_table(gamma))
+            }
+            VbMode::Float => unreachable!("fixed-point modes"),
+        };
+        let mut out = Vec::new();
+        for y in 0..h {
+            let below = (y + 1).min(h - 1);
+            let line: Vec<[i32; 3]> = (0..w)
+                .map(|x| {
+                    let (a, b) = (codes[y * w + x], codes[below * w + x]);
+                    std::array::from_fn(|ch| if filter { mean(load(a[ch]), load(b[ch])) } else { load(a[ch]) })
+                })
+                .collect();
+            for x in 0..w {
+                let (a, b) = (line[x], line[(x + 1).min(w - 1)]);
+                for ch in 0..3 {
+                    let v = if filter { mean(a[ch], b[ch]) } else { a[ch] };
+                    out.push(table[v.max(0) as usize]);
+                }
+            }
+        }
+        out
+    }
+
+    /// The readout, whole and in bands, gives the reference's bytes: every
+    /// fixed-point mode, with and without F2, on random codes with runs of equal
+    /// words and zeros.
+    #[test]
+    fn read_out_matches_reference() {
+        let mut rng = Rng(0x0F2_0F2);
+        let modes = (VB_BITS_MIN..=VB_BITS_MAX).flat_map(|bits| [VbMode::Log { bits }, VbMode::Linear { bits }]);
+        for mode in modes {
+            for (w, h) in [(1, 1), (1, 5), (7, 1), (37, 23)] {
+                let mut vb = VideoBuffer::new(w, h, mode);
+                let one = match mode {
+                    VbMode::Log { bits } | VbMode::Linear { bits } => ((1u32 << bits) - 1) as u16,
+                    VbMode::Float => unreachable!(),
+                };
+                let (Memory::Log { codes, .. } | Memory::Linear { codes, .. }) = &mut vb.memory else {
+                    unreachable!("fixed-point modes")
+                };
+                let mut word = [0; 3];
+                for c in codes.iter_mut() {
+                    // Runs: a new word one time in three, a component at a time.
+                    match rng.next() % 6 {
+                        0 | 1 => word = [rng.code(one), rng.code(one), rng.code(one)],
+                        2 => word[(rng.next() % 3) as usize] = rng.code(one),
+                        _ => {}
+                    }
+                    *c = word;
+                }
+                let codes = codes.clone();
+                for filter in [true, false] {
+                    for gamma in [2.2, 1.0] {
+                        let opts = Readout { filter, gamma };
+                        let expect = reference_read_out(w as usize, h as usize, &codes, filter, mode, gamma);
+                        assert_eq!(vb.read_out(&opts).pixels, expect, "{mode} {w}x{h} filter {filter}");
+                        let (w, h) = (w as usize, h as usize);
+                        let mut banded = vec![0; 3 * w * h];
+                        for (k, out) in banded.chunks_mut(3 * w * 3).enumerate() {
+                            vb.read_out_rows(&opts, 3 * k..(3 * k + 3).min(h), out);
+                        }
+                        assert_eq!(banded, expect, "{mode} {w}x{h} filter {filter}, bands of 3 rows");
+                    }
+                }
+            }
+        }
+    }
+
+    /// F1 gives P1's eq. (3) and (4) one operation at a time: random cells of
+    /// first writes and read-modify-writes, whole and partial pixels.
+    #[test]
+    fn accumulate_matches_equations() {
+        let mut rng = Rng(0xF1_F1);
+        for bits in VB_BITS_MIN..=VB_BITS_MAX {
+            let s = LogScale::get(bits);
+            let mut vb = VideoBuffer::new(8, 8, VbMode::Log { bits });
+            let mut expect = vec![[0u16; 3]; 64];
+            let mut counters = Counters::default();
+            for _ in 0..4000 {
+                let (px, py) = ((rng.next() % 2) as u32 * 4, (rng.next() % 2) as u32 * 4);
+                let sets: [u16; 16] = std::array::from_fn(|_| match rng.next() % 4 {
+                    0 => 0,
+                    1 => 0xFFFF,
+                    _ => rng.next() as u16,
+                });
+                let first = rng.next() as u16;
+                let colors: [Vec3; 16] = std::array::from_fn(|_| {
+                    Vec3::from_array(std::array::from_fn(|_| match rng.next() % 8 {
+                        0 => 0.0,
+                        1 => 1.5,
+                        2 => 1e-4,
+                        _ => (rng.next() % 10_000) as f32 / 10_000.0,
+                    }))
+                });
+                let vis = Visible { px, py, sets, first, covered: false };
+                vb.accumulate::<false>(&vis, &colors, &mut counters);
+                for (i, &set) in sets.iter().enumerate().filter(|(_, &set)| set != 0) {
+                    let p = (py as usize + i / 4) * 8 + px as usize + i % 4;
+                    let n = set.count_ones();
+                    for ch in 0..3 {
+                        let v = s.weigh(s.encode(colors[i][ch]), n);
+                        let v = if first >> i & 1 == 1 { v } else { s.sum(v, LogFine::from_code(expect[p][ch])) };
+                        expect[p][ch] = s.store(v);
+                    }
+                }
+                let Memory::Log { codes, .. } = &vb.memory else { unreachable!("a log buffer") };
+                assert_eq!(codes, &expect, "log{bits}");
+            }
+        }
+    }
 }
