@@ -95,8 +95,9 @@ pub struct BspNode {
     pub front: u32,
     /// Child on the back side.
     pub back: u32,
-    /// The faces lying in the plane (indices into [`Bsp::faces`]).
-    pub faces: Vec<u32>,
+    /// The faces lying in the plane: a range of [`Bsp::faces`] (the faces are
+    /// numbered in node order).
+    pub faces: std::ops::Range<u32>,
 }
 
 /// Build statistics.
@@ -156,6 +157,8 @@ impl Bsp {
             depth: usize,
         }
         let all: Vec<u32> = (0..bsp.faces.len() as u32).collect();
+        // Each node's faces while building (numbered as built; renumbered at the end).
+        let mut node_faces: Vec<Vec<u32>> = Vec::new();
         let mut stack = vec![Work { link: None, list: all, depth: 1 }];
         while let Some(Work { link, list, depth }) = stack.pop() {
             let node = bsp.nodes.len() as u32;
@@ -206,7 +209,8 @@ impl Bsp {
                     }
                 }
             }
-            bsp.nodes.push(BspNode { plane, front: NONE, back: NONE, faces: on });
+            bsp.nodes.push(BspNode { plane, front: NONE, back: NONE, faces: 0..0 });
+            node_faces.push(on);
             if !back.is_empty() {
                 stack.push(Work { link: Some((node, false)), list: back, depth: depth + 1 });
             }
@@ -214,9 +218,26 @@ impl Bsp {
                 stack.push(Work { link: Some((node, true)), list: front, depth: depth + 1 });
             }
         }
+        bsp.renumber_faces(node_faces);
         bsp.stats.nodes = bsp.nodes.len();
         bsp.stats.faces = bsp.faces.len();
         bsp
+    }
+
+    /// Numbers the faces in node order, so that each node's faces are a range and the
+    /// faces of nearby nodes lie together in memory for the traversal and the GP (a
+    /// pure renumbering: the tree and its order are unchanged). A face that no node
+    /// holds (none is expected) keeps a place after the others.
+    fn renumber_faces(&mut self, node_faces: Vec<Vec<u32>>) {
+        let mut old: Vec<Option<BspFace>> = std::mem::take(&mut self.faces).into_iter().map(Some).collect();
+        let mut faces = Vec::with_capacity(old.len());
+        for (node, list) in self.nodes.iter_mut().zip(node_faces) {
+            let start = faces.len() as u32;
+            faces.extend(list.into_iter().filter_map(|f| old[f as usize].take()));
+            node.faces = start..faces.len() as u32;
+        }
+        faces.extend(old.into_iter().flatten());
+        self.faces = faces;
     }
 
     fn side(&self, fi: u32, plane: &Plane) -> Side {
@@ -420,7 +441,7 @@ impl Bsp {
                 }
                 Step::Faces(n) => {
                     visit(Visit::Guests(n, Slot::Straddle));
-                    for &f in &self.nodes[n as usize].faces {
+                    for f in self.nodes[n as usize].faces.clone() {
                         visit(Visit::Face(f));
                     }
                 }

@@ -392,6 +392,7 @@ pub fn frame(db: &Database, eye: &Eye, screen: Screen, config: &GpConfig, counte
 #[derive(Default)]
 pub struct GpMemory {
     order: Vec<Visit>,
+    guest_places: Vec<u8>,
     stretches: Vec<FrameList>,
     pool: Option<(usize, rayon::ThreadPool)>,
 }
@@ -437,7 +438,20 @@ pub fn frame_into(
     // The priority order: the BSP's traversal.
     let mut order = std::mem::take(&mut memory.order);
     order.clear();
-    db.bsp.traverse(view.position, |step| order.push(step));
+    // Only the places where guests are attached this frame enter the order (a
+    // terrain's tree has twice as many empty places as faces).
+    let places = &mut memory.guest_places;
+    places.clear();
+    places.resize(db.bsp.nodes.len(), 0);
+    for g in &shared.guests {
+        if let Some(p) = places.get_mut(g.0 as usize) {
+            *p |= 1 << g.1;
+        }
+    }
+    db.bsp.traverse(view.position, |step| match step {
+        Visit::Guests(n, slot) if places.get(n as usize).is_some_and(|&p| p >> slot as u8 & 1 == 0) => {}
+        _ => order.push(step),
+    });
     let run = |visits: &[Visit], list: &mut FrameList| {
         let setup = Setup::new(&db.scene, &view);
         setup.header(list);
