@@ -118,11 +118,11 @@ impl Matrix {
     /// (in bands of rows on the matrix's threads).
     pub fn read_out(&mut self) -> Image {
         let (first, rest) = self.vps.split_first_mut().expect("at least one VP");
-        for vp in rest.iter() {
-            first.vb.copy_share_from(&vp.vb, &vp.gq.share);
-        }
-        let first = &*first;
-        self.pool.install(|| first.vb.read_out_parallel(&first.config.readout))
+        let others: Vec<_> = rest.iter().map(|vp| (&vp.vb, &vp.gq.share)).collect();
+        self.pool.install(|| {
+            first.vb.copy_shares_from(&others);
+            first.vb.read_out_parallel(&first.config.readout)
+        })
     }
 
     /// Renders a frame list on every VP (their video memories hold the result).

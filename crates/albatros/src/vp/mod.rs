@@ -107,7 +107,8 @@ impl VideoProcessor {
         self.textures = maps.into();
     }
 
-    /// Renders a frame list into the video buffer (which is cleared first).
+    /// Renders a frame list into the video buffer (every pixel of the VP's share is
+    /// written afresh; nothing of the previous frame remains).
     pub fn render_frame(&mut self, frame: &FrameList) {
         assert_eq!((frame.width, frame.height), (self.vb.width, self.vb.height), "frame list for another screen size");
         if self.config.stats {
@@ -124,7 +125,11 @@ impl VideoProcessor {
     }
 
     fn render_inner<const STATS: bool>(&mut self, frame: &FrameList) {
-        self.vb.clear();
+        // No clearing of the VB: every pixel of this VP's share gets a first write
+        // each frame (the background is the last fragment of every pixel and takes
+        // what is left, so each pixel's mask goes from empty to full), and the first
+        // write replaces what the pixel held. Pixels outside the share are never
+        // read out of this VP.
         let cc = ColorComputers::new(frame, &self.textures);
         let mut colors = [Vec3::ZERO; 16];
         let mut inner = Counters::new(self.gq.root_level);

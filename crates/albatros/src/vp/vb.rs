@@ -900,6 +900,42 @@ impl VideoBuffer {
         }
     }
 
+    /// [`Self::copy_share_from`] for several buffers at once, in bands of rows on the
+    /// current rayon pool (the matrix's gathering of its VPs' memories). The same
+    /// result as copying them one after another: the shares do not overlap.
+    pub fn copy_shares_from(&mut self, others: &[(&VideoBuffer, &Share)]) {
+        for (other, _) in others {
+            assert_eq!(
+                (self.width, self.height, self.mode()),
+                (other.width, other.height, other.mode()),
+                "video buffers of different sizes or modes"
+            );
+        }
+        let w = self.width as usize;
+        match &mut self.memory {
+            Memory::Float(dst) => {
+                let srcs: Vec<(&[Vec3], &Share)> = others
+                    .iter()
+                    .map(|(o, share)| match &o.memory {
+                        Memory::Float(src) => (src.as_slice(), *share),
+                        _ => unreachable!("the modes were compared above"),
+                    })
+                    .collect();
+                copy_shares_parallel(dst, &srcs, w);
+            }
+            Memory::Log { codes: dst, .. } | Memory::Linear { codes: dst, .. } => {
+                let srcs: Vec<(&[[u16; 3]], &Share)> = others
+                    .iter()
+                    .map(|(o, share)| match &o.memory {
+                        Memory::Log { codes: src, .. } | Memory::Linear { codes: src, .. } => (src.as_slice(), *share),
+                        Memory::Float(_) => unreachable!("the modes were compared above"),
+                    })
+                    .collect();
+                copy_shares_parallel(dst, &srcs, w);
+            }
+        }
+    }
+
     /// Copies the pixels `(x, y)` for which `owns(x, y)` holds from a buffer of the
     /// same size and mode. Panics on a buffer of another size or mode.
     pub fn copy_from(&mut self, other: &VideoBuffer, owns: impl Fn(u32, u32) -> bool) {
@@ -927,19 +963,40 @@ impl VideoBuffer {
 
 /// Copies the pixels of a matrix VP's share: whole tile runs of the rows it owns.
 fn copy_share<T: Copy>(dst: &mut [T], src: &[T], width: usize, height: usize, share: &Share) {
+    copy_share_rows(dst, src, width, 0..height, share);
+}
+
+/// [`copy_share`] for rows `rows` only, `dst` holding just those rows.
+fn copy_share_rows<T: Copy>(dst: &mut [T], src: &[T], width: usize, rows: std::ops::Range<usize>, share: &Share) {
     let tile = share.tile as usize;
-    for y in 0..height {
+    let first = rows.start;
+    for y in rows {
         if (y / tile) % share.q as usize != share.j as usize {
             continue;
         }
-        let row = y * width;
+        let (d, s) = (&mut dst[(y - first) * width..][..width], &src[y * width..][..width]);
         let mut x = share.i as usize * tile;
         while x < width {
             let end = (x + tile).min(width);
-            dst[row + x..row + end].copy_from_slice(&src[row + x..row + end]);
+            d[x..end].copy_from_slice(&s[x..end]);
             x += tile * share.p as usize;
         }
     }
+}
+
+/// The shares of several buffers copied into `dst`, in bands of rows on the
+/// current rayon pool.
+fn copy_shares_parallel<T: Copy + Send + Sync>(dst: &mut [T], srcs: &[(&[T], &Share)], width: usize) {
+    use rayon::prelude::*;
+    if width == 0 {
+        return;
+    }
+    dst.par_chunks_mut(READOUT_BAND_ROWS * width).enumerate().for_each(|(k, band)| {
+        let y0 = k * READOUT_BAND_ROWS;
+        for &(src, share) in srcs {
+            copy_share_rows(band, src, width, y0..y0 + band.len() / width, share);
+        }
+    });
 }
 
 /// Copies the row-major pixels that `owns(x, y)` selects.

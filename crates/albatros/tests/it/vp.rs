@@ -449,3 +449,37 @@ fn same_bytes_whatever_the_matrix_size_or_thread_count() {
         }
     }
 }
+
+#[test]
+fn a_reused_video_processor_or_matrix_keeps_nothing_of_the_last_frame() {
+    // The VB is not cleared between frames: every pixel gets a first write. A VP (and
+    // a matrix) that rendered other frames before must give the bytes of a fresh one.
+    use albatros::matrix::Matrix;
+    let (w, h) = (200, 150);
+    let frames: Vec<(FrameList, std::sync::Arc<albatros::vp::texture::TextureMaps>)> =
+        ["city", "default", "rombm", "terrain"]
+            .iter()
+            .map(|name| {
+                let mut scene = albatros::db::builtin::scene(name).unwrap();
+                scene.screen = albatros::db::Screen { width: w, height: h };
+                let db = albatros::gp::Database::new(scene);
+                let (frame, _) = albatros::gp::frame_of_scene(&db, &albatros::gp::GpConfig::default());
+                let maps = albatros::vp::texture::TextureMaps::from_scene(&db.scene, std::path::Path::new(""));
+                (frame, std::sync::Arc::new(maps.unwrap()))
+            })
+            .collect();
+    for vb in ["log8", "float", "linear8"] {
+        let config = VpConfig { vb: vb.parse().unwrap(), ..VpConfig::default() };
+        let mut reused = VideoProcessor::new(w, h, config);
+        let mut matrix = Matrix::new(w, h, config, 2, 1, 16, 2).unwrap();
+        for (k, (frame, maps)) in frames.iter().enumerate() {
+            let mut fresh = VideoProcessor::new(w, h, config);
+            fresh.set_textures(maps.clone());
+            reused.set_textures(maps.clone());
+            matrix.set_textures(maps.clone());
+            let want = fresh.render(frame);
+            assert!(reused.render(frame) == want, "{vb}: frame {k} on a reused VP differs from a fresh VP");
+            assert!(matrix.render(frame) == want, "{vb}: frame {k} on a reused matrix differs from a fresh VP");
+        }
+    }
+}
