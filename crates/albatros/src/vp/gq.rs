@@ -205,7 +205,20 @@ pub struct CellProcessors {
     pub recorder: Option<Vec<CellRecord>>,
     memories: Vec<MaskMemory>,
     scratch: Vec<Vec<ActiveEdge>>,
-    codes: Vec<Vec<(u8, u8)>>,
+    codes: Vec<Vec<EdgeSplit>>,
+}
+
+/// What a GQ keeps of one active edge between forming its codes and handing the
+/// children their active edges.
+#[derive(Clone, Copy, Debug)]
+struct EdgeSplit {
+    /// The children the edge crosses: `CRI_i & !CI_i`, bit per child.
+    crossed: u8,
+    /// The children on the first half of the edge's stretch (`V1`, midpoint): the top
+    /// row for a vertical edge, the left column for a horizontal one.
+    first_half: u8,
+    /// The midpoint `(V1 + V2) / 2`.
+    vm: EdgeCoord,
 }
 
 /// A level-L cell handed to the SPPs, with the edges that cross it.
@@ -374,35 +387,33 @@ impl CellProcessors {
             list.push(ActiveEdge { edge: i as u32, v1: e.v_at(t0), v2: e.v_at(t0 + side) });
         }
         if start.level == self.root_level {
-            let active = std::mem::take(&mut self.scratch[start.level as usize]);
-            spp(Fragment { px: start.x * 4, py: start.y * 4, active: &active });
-            self.scratch[start.level as usize] = active;
+            spp(Fragment { px: start.x * 4, py: start.y * 4, active: &self.scratch[start.level as usize] });
             return;
         }
-        self.split::<STATS>(start, poly, counters, spp);
+        self.split::<STATS>(GqRom::get(), start, poly, counters, spp);
     }
 
     /// One GQ step: splits `cell` (whose active edges are in `scratch[cell.level]`)
     /// into four children and descends into those inside or crossed.
     fn split<const STATS: bool>(
         &mut self,
+        rom: &GqRom,
         cell: Cell,
         poly: &GqPolygon,
         counters: &mut Counters,
         spp: &mut impl FnMut(Fragment),
     ) {
-        let rom = GqRom::get();
         let k = cell.level as usize;
         let child_level = cell.level + 1;
         let side = i64::from(self.side(cell.level));
         let half_shift = EDGE_FRAC_BITS + (self.root_level + 1 - cell.level);
+        let on_line_bits = (1i64 << half_shift) - 1;
         let (ox, oy) = (EdgeCoord::pixels(i64::from(cell.x) * side), EdgeCoord::pixels(i64::from(cell.y) * side));
 
         // Edge codes: CI_i, CRI_i per edge, ANDed (P1 eq. 2).
         let mut ci_all = 0xFu8;
         let mut cri_all = 0xFu8;
-        let (scratch_lo, _) = self.scratch.split_at_mut(k + 1);
-        let active = &scratch_lo[k];
+        let active = &self.scratch[k];
         let codes = &mut self.codes[k];
         codes.clear();
         for a in active.iter() {
@@ -412,26 +423,27 @@ impl CellProcessors {
                 Tg::Horizontal => oy,
             };
             let vm = (a.v1.0 + a.v2.0) >> 1;
+            let (d1, dm, d2) = (a.v1.0 - origin.0, vm - origin.0, a.v2.0 - origin.0);
             // Two readings of the high bits: `floor((V - origin) / half)` decides
             // "the line lies at or beyond a child's far border" exactly, and the same
             // of V one LSB lower decides "at or before its near border" exactly. A
             // line lying on a cell border (the screen's edges after clipping, grid
             // geometry) then leaves the cell on its side IN or OUT instead of
             // crossed all the way down to the SPPs.
-            let b = |v: i64| (((v - origin.0) >> half_shift).clamp(-1, 2)) as i32;
-            let b_low = |v: i64| (((v - origin.0 - 1) >> half_shift).clamp(-1, 2)) as i32;
-            let at_or_after = rom.lookup(GqRom::address(e.tg, e.lr, b(a.v1.0), b(vm), b(a.v2.0)));
+            let b = |d: i64| (d >> half_shift).clamp(-1, 2) as i32;
+            let address = |b1: i32, bm: i32, b2: i32| GqRom::address(e.tg, e.lr, b1, bm, b2);
+            let at_or_after = rom.lookup(address(b(d1), b(dm), b(d2)));
             // The readings differ only when a value lies exactly on a half-cell line.
-            let on_line = |v: i64| (v - origin.0) & ((1i64 << half_shift) - 1) == 0;
-            let at_or_before = if on_line(a.v1.0) || on_line(vm) || on_line(a.v2.0) {
-                rom.lookup(GqRom::address(e.tg, e.lr, b_low(a.v1.0), b_low(vm), b_low(a.v2.0)))
-            } else {
-                at_or_after
-            };
+            let on_line = (d1 & on_line_bits == 0) | (dm & on_line_bits == 0) | (d2 & on_line_bits == 0);
+            let at_or_before = if on_line { rom.lookup(address(b(d1 - 1), b(dm - 1), b(d2 - 1))) } else { at_or_after };
             // LR = 1 (polygon on the greater side): IN is "line before the child",
             // OUT is "line after it"; LR = 0 the other way round.
             let (ci, cri) = if e.lr { (at_or_before.0, at_or_after.1) } else { (at_or_after.0, at_or_before.1) };
-            codes.push((ci, cri));
+            let first_half = match e.tg {
+                Tg::Vertical => 0b0011,
+                Tg::Horizontal => 0b0101,
+            };
+            codes.push(EdgeSplit { crossed: cri & !ci, first_half, vm: EdgeCoord(vm) });
             ci_all &= ci;
             cri_all &= cri;
         }
@@ -441,10 +453,9 @@ impl CellProcessors {
         let mut m = 0u8;
         let mem_on = self.masks.has(child_level);
         let memory = &self.memories[child_level as usize];
-        for c in 0..4u32 {
-            if memory.get((cell.x * 2 + (c & 1)) as usize, (cell.y * 2 + (c >> 1)) as usize) {
-                m |= 1 << c;
-            }
+        let (cx0, cy0) = (cell.x as usize * 2, cell.y as usize * 2);
+        for c in 0..4usize {
+            m |= u8::from(memory.get(cx0 + (c & 1), cy0 + (c >> 1))) << c;
         }
         let cri = !m & cri_all & 0xF;
         let ci = !m & ci_all & 0xF;
@@ -461,43 +472,39 @@ impl CellProcessors {
             }
         }
         if poly.opaque && mem_on {
-            for c in 0..4u32 {
-                if ci >> c & 1 == 1 {
-                    self.memories[child_level as usize]
-                        .set((cell.x * 2 + (c & 1)) as usize, (cell.y * 2 + (c >> 1)) as usize);
-                }
+            let memory = &mut self.memories[child_level as usize];
+            let mut inside = ci;
+            while inside != 0 {
+                let c = inside.trailing_zeros() as usize;
+                inside &= inside - 1;
+                memory.set(cx0 + (c & 1), cy0 + (c >> 1));
             }
         }
-        for c in 0..4u32 {
-            if cri >> c & 1 == 0 {
-                continue;
-            }
-            let (col, row) = (c & 1, c >> 1);
+        let mut todo = cri;
+        while todo != 0 {
+            let c = todo.trailing_zeros();
+            todo &= todo - 1;
             // Active edges of the child: those crossing it, with V1, V2 halved.
             {
                 let (lo, hi) = self.scratch.split_at_mut(k + 1);
                 let (parent, child) = (&lo[k], &mut hi[0]);
                 child.clear();
-                for (a, &(eci, ecri)) in parent.iter().zip(self.codes[k].iter()) {
-                    if ecri >> c & 1 == 1 && eci >> c & 1 == 0 {
-                        let e = &poly.edges[a.edge as usize];
-                        let along = match e.tg {
-                            Tg::Vertical => row,
-                            Tg::Horizontal => col,
-                        };
-                        let vm = EdgeCoord((a.v1.0 + a.v2.0) >> 1);
-                        let (v1, v2) = if along == 0 { (a.v1, vm) } else { (vm, a.v2) };
+                for (a, s) in parent.iter().zip(self.codes[k].iter()) {
+                    if s.crossed >> c & 1 == 1 {
+                        let (v1, v2) = if s.first_half >> c & 1 == 1 { (a.v1, s.vm) } else { (s.vm, a.v2) };
                         child.push(ActiveEdge { edge: a.edge, v1, v2 });
                     }
                 }
             }
-            let child_cell = Cell { level: child_level, x: cell.x * 2 + col, y: cell.y * 2 + row };
+            let child_cell = Cell { level: child_level, x: cell.x * 2 + (c & 1), y: cell.y * 2 + (c >> 1) };
             if child_level == self.root_level {
-                let active = std::mem::take(&mut self.scratch[child_level as usize]);
-                spp(Fragment { px: child_cell.x * 4, py: child_cell.y * 4, active: &active });
-                self.scratch[child_level as usize] = active;
+                spp(Fragment {
+                    px: child_cell.x * 4,
+                    py: child_cell.y * 4,
+                    active: &self.scratch[child_level as usize],
+                });
             } else {
-                self.split::<STATS>(child_cell, poly, counters, spp);
+                self.split::<STATS>(rom, child_cell, poly, counters, spp);
             }
         }
     }

@@ -17,7 +17,7 @@
 
 use super::edge::{EdgeCode, ExactLine, Tg, EDGE_FRAC_BITS, SNAP_ONE};
 use super::gq::{Fragment, Share};
-use super::tables::{SppMode, SppTable, SPP_V_BITS};
+use super::tables::{SppMode, SppTable, SPP_Q_COUNT, SPP_Q_MAX, SPP_Q_MIN, SPP_V_BITS};
 use crate::model::stats::Counters;
 
 /// Pixels per cell side at the last level.
@@ -138,9 +138,14 @@ impl SubpixelProcessors {
         let mut code = [FULL; 16];
         for a in frag.active {
             let e = &edges[a.edge as usize];
-            // Whether an endpoint of the edge is near this cell at all (else no pixel
-            // of it is a vertex pixel of this edge).
-            let vertex_cell = self.vertex_exact && near_end_cell(&e.exact, frag.px, frag.py);
+            // The pixels of this cell near an endpoint of the edge (bit `4 y + x`),
+            // where the exact rule replaces the table; none when no endpoint is near
+            // the cell at all.
+            let vertex = if self.vertex_exact && near_end_cell(&e.exact, frag.px, frag.py) {
+                vertex_pixels(&e.exact, frag.px, frag.py)
+            } else {
+                0
+            };
             // q on the five pixel lines of the cell (rows for a vertical edge, columns
             // for a horizontal one), relative to the cell's first pixel column (row);
             // the next pixel across is 8 eighths further, so its q is 8 less. V is
@@ -154,22 +159,18 @@ impl SubpixelProcessors {
                 *qk = round_q(a.v1.0 + e.slope.0 * k as i64 - base);
             }
             let table = self.table.half(e.tg, e.lr);
-            for across in 0..4usize {
-                let shift = (across as i32) << SPP_V_BITS;
-                for along in 0..4usize {
-                    let pixel = match e.tg {
-                        Tg::Vertical => along * 4 + across,
-                        Tg::Horizontal => across * 4 + along,
-                    };
-                    if vertex_cell {
-                        let (x, y) = (frag.px + (pixel as u32 & 3), frag.py + (pixel as u32 >> 2));
-                        if near_end(&e.exact, x, y) {
-                            code[pixel] &= exact_set(&e.exact, e.lr, x, y);
-                            continue;
-                        }
-                    }
-                    code[pixel] &= SppTable::lookup_in(table, q[along] - shift, q[along + 1] - shift);
-                }
+            let mut sets = match e.tg {
+                Tg::Vertical => edge_sets::<true>(table, &q),
+                Tg::Horizontal => edge_sets::<false>(table, &q),
+            };
+            let mut near = vertex;
+            while near != 0 {
+                let pixel = near.trailing_zeros();
+                near &= near - 1;
+                sets[pixel as usize & 15] = exact_set(&e.exact, e.lr, frag.px + (pixel & 3), frag.py + (pixel >> 2));
+            }
+            for (c, s) in code.iter_mut().zip(sets) {
+                *c &= s;
             }
         }
         if STATS {
@@ -214,19 +215,22 @@ impl SubpixelProcessors {
         let mask = &mut self.masks[cell];
         let mut sets = [0u16; 16];
         let mut first = 0u16;
+        // AND of the updated mask words: the cell is covered when it is FULL.
+        let mut all = FULL;
         for i in 0..16 {
-            let visible = code[i] & thin[i] & !mask[i];
-            if mask[i] == 0 && visible != 0 {
-                first |= 1 << i;
-            }
-            mask[i] |= visible;
+            let m = mask[i];
+            let visible = code[i] & thin[i] & !m;
+            first |= u16::from((m == 0) & (visible != 0)) << i;
+            let now = m | visible;
+            mask[i] = now;
+            all &= now;
             sets[i] = visible;
         }
         if STATS {
             let on_screen = (self.width - frag.px).min(CELL_SIDE) * (self.height - frag.py).min(CELL_SIDE);
             counters.count_spp_fragment(&sets, on_screen);
         }
-        let covered = mask.iter().all(|&m| m == FULL);
+        let covered = all == FULL;
         Visible { px: frag.px, py: frag.py, sets, first, covered }
     }
 
@@ -251,12 +255,60 @@ impl SubpixelProcessors {
 const VERTEX_MARGIN: i32 = SNAP_ONE / 2;
 
 /// Whether one of the edge's endpoints lies in pixel `(x, y)` or within
-/// [`VERTEX_MARGIN`] of it.
-#[inline]
+/// [`VERTEX_MARGIN`] of it (the rule [`vertex_pixels`] applies to a whole cell).
+#[cfg(test)]
 fn near_end(line: &ExactLine, x: u32, y: u32) -> bool {
     let (x0, y0) = (x as i32 * SNAP_ONE - VERTEX_MARGIN, y as i32 * SNAP_ONE - VERTEX_MARGIN);
     let (x1, y1) = ((x as i32 + 1) * SNAP_ONE + VERTEX_MARGIN, (y as i32 + 1) * SNAP_ONE + VERTEX_MARGIN);
     line.ends.iter().any(|&(ex, ey)| ex >= x0 && ex <= x1 && ey >= y0 && ey <= y1)
+}
+
+/// The vertex pixels of an edge in the 4x4 cell at pixel `(px, py)`: bit `4 y + x`
+/// set when one of the edge's endpoints lies in that pixel or within
+/// [`VERTEX_MARGIN`] of it. Per endpoint the pixels form a rectangle: the columns
+/// whose widened span holds its x times the rows whose widened span holds its y.
+#[inline]
+fn vertex_pixels(line: &ExactLine, px: u32, py: u32) -> u16 {
+    let mut pixels = 0u16;
+    for &(ex, ey) in &line.ends {
+        let (mut cols, mut rows) = (0u16, 0u16);
+        for d in 0..4i32 {
+            let x0 = (px as i32 + d) * SNAP_ONE - VERTEX_MARGIN;
+            let y0 = (py as i32 + d) * SNAP_ONE - VERTEX_MARGIN;
+            cols |= u16::from(ex >= x0 && ex <= x0 + SNAP_ONE + 2 * VERTEX_MARGIN) << d;
+            rows |= u16::from(ey >= y0 && ey <= y0 + SNAP_ONE + 2 * VERTEX_MARGIN) << d;
+        }
+        // Row bit `y` to nibble `y`, times the four column bits.
+        let spread = (rows & 1) | (rows & 2) << 3 | (rows & 4) << 6 | (rows & 8) << 9;
+        pixels |= spread * cols;
+    }
+    pixels
+}
+
+/// One edge's subpixel sets for the 16 pixels of a cell (`4 y + x`), from the table
+/// part of its `(TG, LR)` and its `q` on the cell's five pixel lines: the pixel
+/// `along` the edge's V lines and `across` them reads `(q[along] - 8 across,
+/// q[along + 1] - 8 across)`. `VERTICAL`: along is `y`, across is `x`; else the other
+/// way round.
+#[inline(always)]
+fn edge_sets<const VERTICAL: bool>(table: &[u16; SPP_Q_COUNT * SPP_Q_COUNT], q: &[i32; 5]) -> [u16; 16] {
+    // The saturated q of line `k` for the pixels `across`, as a table row / column
+    // index (the saturation of [`SppTable::lookup_in`]).
+    let mut idx = [[0usize; 4]; 5];
+    for (k, row) in idx.iter_mut().enumerate() {
+        for (across, i) in row.iter_mut().enumerate() {
+            let v = q[k] - ((across as i32) << SPP_V_BITS);
+            *i = (v.clamp(SPP_Q_MIN, SPP_Q_MAX) - SPP_Q_MIN) as usize;
+        }
+    }
+    let mut sets = [0u16; 16];
+    for along in 0..4 {
+        for across in 0..4 {
+            let pixel = if VERTICAL { along * 4 + across } else { across * 4 + along };
+            sets[pixel] = table[idx[along][across] * SPP_Q_COUNT + idx[along + 1][across]];
+        }
+    }
+    sets
 }
 
 /// Whether one of the edge's endpoints lies within [`VERTEX_MARGIN`] of the 4x4 cell
@@ -280,21 +332,33 @@ fn exact_set(line: &ExactLine, lr: bool, x: u32, y: u32) -> u16 {
     const SUB: i64 = (SNAP_ONE / 4) as i64;
     let x0 = i64::from(x) * i64::from(SNAP_ONE) + HALF_SUB;
     let y0 = i64::from(y) * i64::from(SNAP_ONE) + HALF_SUB;
-    // A centre on the line: the one perturbation of `greater_side` decides.
+    // A centre on the line: the one perturbation of `greater_side` decides, so the
+    // greater side is `E >= 0` when it holds there and `E >= 1` otherwise.
     let on_line = line.a > 0 || (line.a == 0 && line.b > 0);
+    let threshold = i64::from(!on_line);
     let (step_x, step_y) = (line.a * SUB, line.b * SUB);
-    let mut row = line.a * x0 + line.b * y0 + line.c;
-    let mut set = 0u16;
+    // E at the row's centres, less the threshold: a centre is on the greater side
+    // when this is not negative. Steps by additions, four centres of a row at once.
+    let steps = [0, step_x, step_x + step_x, step_x + step_x + step_x];
+    let mut row = line.a * x0 + line.b * y0 + line.c - threshold;
+    let mut e = [0i64; 16];
     for sy in 0..4 {
-        let mut e = row;
-        for sx in 0..4 {
-            let greater = e > 0 || (e == 0 && on_line);
-            set |= u16::from(greater == lr) << (4 * sy + sx);
-            e += step_x;
+        for (sx, &dx) in steps.iter().enumerate() {
+            e[4 * sy + sx] = row + dx;
         }
         row += step_y;
     }
-    set
+    // The sign bits of the 16 values: the centres off the greater side.
+    let mut less = 0u16;
+    for (i, &v) in e.iter().enumerate() {
+        less |= ((v as u64 >> 63) as u16) << i;
+    }
+    let greater = !less;
+    if lr {
+        greater
+    } else {
+        !greater
+    }
 }
 
 /// A 16 x 16 Bayer threshold matrix over the 256 subpixels of a cell.
@@ -378,6 +442,58 @@ mod tests {
                 for sub in 0..16 {
                     let greater = line.greater_side(centre(x, sub & 3), centre(y, sub >> 2));
                     assert_eq!(set >> sub & 1 == 1, greater == lr, "line {line:?}, pixel ({x}, {y}), subpixel {sub}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn vertex_pixels_are_the_pixels_near_an_end() {
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut next = |n: i32| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state % n as u64) as i32
+        };
+        for _ in 0..20_000 {
+            let (px, py) = (4 * next(16) as u32, 4 * next(16) as u32);
+            let mut end = || (next(70 * SNAP_ONE) - 3 * SNAP_ONE, next(70 * SNAP_ONE) - 3 * SNAP_ONE);
+            let mut ends = [end(), end()];
+            // Endpoints on and around the margins of the cell's pixels.
+            if next(2) == 0 {
+                let d = |v: i32| v - v.rem_euclid(SNAP_ONE / 2);
+                ends[0] = (d(ends[0].0) + next(3) - 1, d(ends[0].1) + next(3) - 1);
+            }
+            let line = ExactLine { a: 1, b: 0, c: 0, ends };
+            let pixels = vertex_pixels(&line, px, py);
+            for pixel in 0..16u32 {
+                let near = near_end(&line, px + (pixel & 3), py + (pixel >> 2));
+                assert_eq!(pixels >> pixel & 1 == 1, near, "ends {ends:?}, cell ({px}, {py}), pixel {pixel}");
+            }
+            assert_eq!(pixels != 0, near_end_cell(&line, px, py), "ends {ends:?}, cell ({px}, {py})");
+        }
+    }
+
+    #[test]
+    fn edge_sets_are_the_sixteen_lookups() {
+        let table = SppTable::get(SppMode::Area);
+        for (tg, vertical) in [(Tg::Vertical, true), (Tg::Horizontal, false)] {
+            for lr in [false, true] {
+                let part = table.half(tg, lr);
+                for q0 in -40..40 {
+                    for dq in -12..12 {
+                        let q: [i32; 5] = std::array::from_fn(|k| q0 + dq * k as i32 / 2);
+                        let sets = if vertical { edge_sets::<true>(part, &q) } else { edge_sets::<false>(part, &q) };
+                        for along in 0..4 {
+                            for across in 0..4 {
+                                let pixel = if vertical { along * 4 + across } else { across * 4 + along };
+                                let shift = (across as i32) << SPP_V_BITS;
+                                let want = SppTable::lookup_in(part, q[along] - shift, q[along + 1] - shift);
+                                assert_eq!(sets[pixel], want, "q {q:?}, pixel {pixel}");
+                            }
+                        }
+                    }
                 }
             }
         }
