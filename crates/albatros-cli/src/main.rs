@@ -20,7 +20,7 @@ use albatros::matrix::Matrix;
 use albatros::vp::gq::{CellProcessors, MaskLevels};
 use albatros::vp::tables::{GqRom, SppMode, SppTable};
 use albatros::vp::texture::TextureMaps;
-use albatros::vp::vb::{Readout, VbMode};
+use albatros::vp::vb::{Image, Readout, VbMode};
 use albatros::vp::{VideoProcessor, VpConfig};
 
 /// The Albatros image generator: a software model of the 1990s «Альбатрос» visual
@@ -445,9 +445,18 @@ fn bench(args: BenchArgs) -> Result<()> {
         let gp_cfg = GpConfig { threads: args.threads, ..GpConfig::default() };
         // The GP's memory and the frame list are kept from frame to frame.
         let (mut gp_memory, mut frame) = (GpMemory::default(), FrameList::default());
+        // The displayed image, kept like a display's frame store.
+        let mut shown = Image { width: 0, height: 0, pixels: Vec::new() };
         for f in 0..args.warmup + args.frames {
             let t0 = std::time::Instant::now();
-            gp::frame_into(&db, &db.scene.eye, screen, &gp_cfg, &mut counters, &mut gp_memory, &mut frame);
+            if args.threads == 1 {
+                gp::frame_into(&db, &db.scene.eye, screen, &gp_cfg, &mut counters, &mut gp_memory, &mut frame);
+            } else {
+                // The several GPs on the matrix's threads.
+                matrix.install(|| {
+                    gp::frame_into(&db, &db.scene.eye, screen, &gp_cfg, &mut counters, &mut gp_memory, &mut frame)
+                });
+            }
             let t1 = std::time::Instant::now();
             // One thread: the raster stages alone, then the whole VP (colour and VB by
             // difference). More: the matrix, all stages together.
@@ -465,12 +474,12 @@ fn bench(args: BenchArgs) -> Result<()> {
                 Some(())
             };
             let t3 = std::time::Instant::now();
-            let image = match image {
-                None => vp.vb.read_out(&vp.config.readout),
-                Some(()) => matrix.read_out(),
+            match image {
+                None => vp.vb.read_out_into(&vp.config.readout, &mut shown),
+                Some(()) => matrix.read_out_into(&mut shown),
             };
             let t4 = std::time::Instant::now();
-            std::hint::black_box(image);
+            std::hint::black_box(&shown);
             if f >= args.warmup {
                 let ms = |a: std::time::Instant, b: std::time::Instant| (b - a).as_secs_f64() * 1e3;
                 gp_t.push(ms(t0, t1));

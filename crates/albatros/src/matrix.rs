@@ -117,11 +117,19 @@ impl Matrix {
     /// Gathers the VPs' video memories into one interleaved image and reads it out
     /// (in bands of rows on the matrix's threads).
     pub fn read_out(&mut self) -> Image {
+        let mut image = Image { width: 0, height: 0, pixels: Vec::new() };
+        self.read_out_into(&mut image);
+        image
+    }
+
+    /// [`Self::read_out`] into an image kept from frame to frame (its allocation
+    /// reused).
+    pub fn read_out_into(&mut self, image: &mut Image) {
         let (first, rest) = self.vps.split_first_mut().expect("at least one VP");
         let others: Vec<_> = rest.iter().map(|vp| (&vp.vb, &vp.gq.share)).collect();
         self.pool.install(|| {
             first.vb.copy_shares_from(&others);
-            first.vb.read_out_parallel(&first.config.readout)
+            first.vb.read_out_parallel_into(&first.config.readout, image)
         })
     }
 
@@ -129,6 +137,13 @@ impl Matrix {
     pub fn render_frame(&mut self, frame: &FrameList) {
         let vps = &mut self.vps;
         self.pool.install(|| vps.par_iter_mut().for_each(|vp| vp.render_frame(frame)));
+    }
+
+    /// Runs `f` on the matrix's threads: the GP's several processors
+    /// (`gp::frame_into` with as many threads) then share the cores with the VPs
+    /// instead of competing with them from a pool of their own.
+    pub fn install<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
+        self.pool.install(f)
     }
 
     /// Gives every VP the texture maps.

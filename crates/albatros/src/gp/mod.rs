@@ -468,12 +468,20 @@ pub fn frame_into(
     let mut c = GpCounters::default();
     let parallel = config.threads > 1 && order.len() > VISITS_PER_STRETCH;
     let mut stretches = std::mem::take(&mut memory.stretches);
-    match if parallel { memory.pool(config.threads) } else { None } {
-        Some(pool) => {
-            stretches.resize_with(order.len().div_ceil(VISITS_PER_STRETCH), FrameList::default);
-            let parts: Vec<GpCounters> = pool.install(|| {
-                order.par_chunks(VISITS_PER_STRETCH).zip(stretches.par_iter_mut()).map(|(v, l)| run(v, l)).collect()
-            });
+    let set_up = |stretches: &mut Vec<FrameList>| -> Vec<GpCounters> {
+        stretches.resize_with(order.len().div_ceil(VISITS_PER_STRETCH), FrameList::default);
+        order.par_chunks(VISITS_PER_STRETCH).zip(stretches.par_iter_mut()).map(|(v, l)| run(v, l)).collect()
+    };
+    // Called on a rayon pool of as many threads (the matrix's, `Matrix::install`):
+    // work there rather than wake a second set of threads for the same cores.
+    let in_pool = rayon::current_thread_index().is_some() && rayon::current_num_threads() == config.threads;
+    let parts = match (parallel, in_pool) {
+        (false, _) => None,
+        (true, true) => Some(set_up(&mut stretches)),
+        (true, false) => memory.pool(config.threads).map(|pool| pool.install(|| set_up(&mut stretches))),
+    };
+    match parts {
+        Some(parts) => {
             Setup::new(&db.scene, &view).header(out);
             for (list, k) in stretches.iter().zip(&parts) {
                 out.append(list);

@@ -826,26 +826,46 @@ impl VideoBuffer {
 
     /// Reads the frame out through F2 and the gamma table.
     pub fn read_out(&self, opts: &Readout) -> Image {
-        let mut pixels = vec![0u8; self.width as usize * self.height as usize * 3];
-        self.read_out_rows(opts, 0..self.height as usize, &mut pixels);
-        Image { width: self.width, height: self.height, pixels }
+        let mut image = Image { width: 0, height: 0, pixels: Vec::new() };
+        self.read_out_into(opts, &mut image);
+        image
+    }
+
+    /// [`Self::read_out`] into an image kept from frame to frame (its allocation
+    /// reused: a display's frame store).
+    pub fn read_out_into(&self, opts: &Readout, image: &mut Image) {
+        image.width = self.width;
+        image.height = self.height;
+        // Every byte is written; `resize` only zeroes a first or larger frame.
+        image.pixels.resize(self.width as usize * self.height as usize * 3, 0);
+        self.read_out_rows(opts, 0..self.height as usize, &mut image.pixels);
     }
 
     /// Reads the frame out in bands of rows on the current rayon pool: the same
     /// bytes as [`Self::read_out`] (each output row depends only on its own row and
     /// the one below).
     pub fn read_out_parallel(&self, opts: &Readout) -> Image {
+        let mut image = Image { width: 0, height: 0, pixels: Vec::new() };
+        self.read_out_parallel_into(opts, &mut image);
+        image
+    }
+
+    /// [`Self::read_out_parallel`] into an image kept from frame to frame (resized
+    /// to this buffer; its allocation is reused: a display's frame store).
+    pub fn read_out_parallel_into(&self, opts: &Readout, image: &mut Image) {
         use rayon::prelude::*;
         let (w, h) = (self.width as usize, self.height as usize);
-        let mut pixels = vec![0u8; w * h * 3];
+        image.width = self.width;
+        image.height = self.height;
+        // Every byte is written below; `resize` only zeroes a first or larger frame.
+        image.pixels.resize(w * h * 3, 0);
         let band = READOUT_BAND_ROWS;
         // One gamma table for all the bands.
         let table = self.gamma_table(opts);
-        pixels.par_chunks_mut(band * w * 3).enumerate().for_each(|(k, out)| {
+        image.pixels.par_chunks_mut(band * w * 3).enumerate().for_each(|(k, out)| {
             let y0 = k * band;
             self.read_out_rows_with(opts, &table, y0..(y0 + band).min(h), out);
         });
-        Image { width: self.width, height: self.height, pixels }
     }
 
     /// Reads out rows `rows` (F2 uses the row below the last one) into `out`, RGB8,

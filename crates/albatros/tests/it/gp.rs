@@ -321,6 +321,15 @@ fn a_reused_frame_memory_gives_the_same_frame_lists_as_fresh_ones() {
                 let fresh = gp::frame(&db, eye, screen, &config, &mut c_fresh);
                 assert!(list == fresh, "{name}, {threads} GPs, eye {k}: a reused memory changes the frame list");
                 assert_eq!(c_reused, c_fresh, "{name}, {threads} GPs, eye {k}: counters");
+                // On the matrix's threads (the GPs then run in its pool, not their own).
+                let matrix = albatros::matrix::Matrix::for_threads(64, 64, Default::default(), threads).unwrap();
+                let mut in_pool = FrameList::default();
+                let mut c_pool = gp::GpCounters::default();
+                matrix.install(|| {
+                    gp::frame_into(&db, eye, screen, &config, &mut c_pool, &mut gp::GpMemory::default(), &mut in_pool)
+                });
+                assert!(in_pool == fresh, "{name}, {threads} GPs on the matrix's threads, eye {k}");
+                assert_eq!(c_pool, c_fresh);
             }
         }
     }
