@@ -138,7 +138,8 @@ impl VideoProcessor {
             Some(p) => {
                 let poly = &frame.polygons[p];
                 cc.shade::<STATS>(poly, vis, &mut colors, &mut inner);
-                vb.accumulate::<STATS>(vis, &colors, &mut inner);
+                // The VB's writes are counted once per frame (`run`).
+                vb.accumulate::<false>(vis, &colors, &mut inner);
             }
             None => vb.accumulate::<false>(vis, &[frame.background; 16], &mut inner),
         });
@@ -252,15 +253,29 @@ impl VideoProcessor {
             }
         }
         // The background: the last fragment of every pixel.
+        let (mut background_subpixels, mut background_firsts) = (0u64, 0u64);
         for cy in 0..spp.rows {
             for cx in 0..spp.stride {
                 let vis = spp.background(cx, cy);
+                if STATS {
+                    background_subpixels += vis.sets.iter().map(|s| u64::from(s.count_ones())).sum::<u64>();
+                    background_firsts += u64::from(vis.first.count_ones());
+                }
                 if vis.sets.iter().any(|&s| s != 0) {
                     sink(None, &vis);
                 }
             }
         }
         if STATS {
+            // Counted once per frame instead of per fragment, exactly: every open
+            // subpixel is set once, by a polygon or else by the background; every open
+            // pixel has one first write, by a polygon or else by the background; every
+            // other visible polygon pixel is a read-modify-write of the VB.
+            let open = spp.open_pixels();
+            inner.spp.subpixels_set += 16 * open - background_subpixels;
+            let firsts = open - background_firsts;
+            inner.color.first_writes += firsts;
+            inner.color.read_modify_writes += inner.spp.pixels_visible - firsts;
             counters.add(&inner);
         }
     }

@@ -61,6 +61,9 @@ pub struct SubpixelProcessors {
     /// The mask memory as a frame starts (pre-masked pixels set), for `share`.
     cleared: Vec<[u16; 16]>,
     cleared_share: Option<Share>,
+    /// Pixels of the share on the screen (not pre-masked): each gets exactly one
+    /// first write per frame.
+    open_pixels: u64,
     thin: Vec<[u16; 16]>,
 }
 
@@ -88,6 +91,7 @@ impl SubpixelProcessors {
             height,
             masks: vec![[0; 16]; stride * rows],
             cleared: Vec::new(),
+            open_pixels: 0,
             cleared_share: None,
             thin: (0..64).map(thinning).collect(),
         };
@@ -114,8 +118,15 @@ impl SubpixelProcessors {
                 })
                 .collect();
             self.cleared_share = Some(self.share);
+            self.open_pixels = self.cleared.iter().flatten().filter(|&&m| m == 0).count() as u64;
         }
         self.masks.copy_from_slice(&self.cleared);
+    }
+
+    /// Pixels of this SPP set's share on the screen (valid after [`Self::clear`]):
+    /// each has 16 open subpixels and gets exactly one first write per frame.
+    pub fn open_pixels(&self) -> u64 {
+        self.open_pixels
     }
 
     /// The mask memory word of the cell at `(cx, cy)`.
@@ -126,6 +137,9 @@ impl SubpixelProcessors {
 
     /// The fragment's code: per pixel, the AND over the crossing edges of their
     /// subpixel sets (no masking).
+    // Kept out of line: inlined into the counting variant of the VP's loop it made
+    // that loop's code larger and the counters' cost several times their work.
+    #[inline(never)]
     pub fn fragment_code<const STATS: bool>(
         &self,
         frag: &Fragment,
@@ -217,6 +231,9 @@ impl SubpixelProcessors {
         let mut first = 0u16;
         // AND of the updated mask words: the cell is covered when it is FULL.
         let mut all = FULL;
+        // Counting only: pixels with a visible subpixel. (The subpixels set are
+        // counted once per frame from the background's share: `VideoProcessor::run`.)
+        let mut pixels = 0u16;
         for i in 0..16 {
             let m = mask[i];
             let visible = code[i] & thin[i] & !m;
@@ -225,10 +242,13 @@ impl SubpixelProcessors {
             mask[i] = now;
             all &= now;
             sets[i] = visible;
+            if STATS {
+                pixels |= u16::from(visible != 0) << i;
+            }
         }
         if STATS {
             let on_screen = (self.width - frag.px).min(CELL_SIDE) * (self.height - frag.py).min(CELL_SIDE);
-            counters.count_spp_fragment(&sets, on_screen);
+            counters.count_spp_counts(pixels.count_ones(), 0, on_screen);
         }
         let covered = all == FULL;
         Visible { px: frag.px, py: frag.py, sets, first, covered }
