@@ -33,7 +33,8 @@
 //!   `render_frame` about 14% more; the readout is faster (18 ms against 22: integer
 //!   tables against float rounding). Since then the log readout has become about
 //!   three times faster (rombm, 1920 x 1080, one thread: it skips the half sums of
-//!   equal neighbours and runs without branches or bounds checks).
+//!   runs of pixels equal to their neighbours and runs without branches or bounds
+//!   checks).
 //! - [`VbMode::Float`]: `f32` accumulators, the reference.
 //! - [`VbMode::Linear`]: a linear fixed-point code of the same width, what P1's log
 //!   scale replaced; kept to measure the contouring it avoids.
@@ -1113,12 +1114,17 @@ fn padded(mut table: Vec<u8>) -> Vec<u8> {
     table
 }
 
+/// Pixels F2 takes at a time: a run equal to its neighbours is copied, the others
+/// are summed without a branch per pixel.
+const F2_RUN: usize = 8;
+
 /// The fixed-point paths' readout: F2 on quarter codes, then the gamma table.
 ///
 /// The gamma table's address of a result is the result masked with
 /// `GAMMA_PADDED - 1`: every result is zero's code or in `0..=4 Q1`, so the mask
-/// keeps it as it is and takes [`LogFine::ZERO`] to 0. Where two operands of a half
-/// sum are equal (flat areas) the mean is the operand and is not computed.
+/// keeps it as it is and takes [`LogFine::ZERO`] to 0. Where a run of [`F2_RUN`]
+/// operands equals its neighbours (flat areas) the means are the operands and are not
+/// computed.
 #[allow(clippy::too_many_arguments, reason = "the readout's registers, passed as they are")]
 fn read_out_fine(
     w: usize,
@@ -1147,21 +1153,40 @@ fn read_out_fine(
             continue;
         }
         let below = &codes[(y + 1).min(h - 1) * w..][..w];
-        // Pass 1: half sums of vertically adjacent pixels (the line buffer).
-        for ((l, a), b) in line.iter_mut().zip(row).zip(below) {
-            *l = if a == b {
-                a.map(|q| f2.load(q))
+        // Pass 1: half sums of vertically adjacent pixels (the line buffer), a run
+        // of F2_RUN pixels at a time: a run equal to the one below (flat areas) is
+        // only loaded; the others are summed without a branch per pixel.
+        for ((l, a), b) in line.chunks_mut(F2_RUN).zip(row.chunks(F2_RUN)).zip(below.chunks(F2_RUN)) {
+            if a == b {
+                for (l, a) in l.iter_mut().zip(a) {
+                    *l = a.map(|q| f2.load(q));
+                }
             } else {
-                std::array::from_fn(|ch| f2.mean(f2.load(a[ch]), f2.load(b[ch])))
-            };
+                for ((l, a), b) in l.iter_mut().zip(a).zip(b) {
+                    *l = std::array::from_fn(|ch| f2.mean(f2.load(a[ch]), f2.load(b[ch])));
+                }
+            }
         }
-        // Pass 2: half sums of horizontally adjacent ones; the last column's own
-        // value stands in for its right neighbour, and its mean with itself is itself.
+        // Pass 2: half sums of horizontally adjacent ones, by runs the same way; the
+        // last column's own value stands in for its right neighbour, and its mean
+        // with itself is itself.
         let (row_out, last) = out_row.split_last_chunk_mut::<3>().expect("a row holds a pixel");
-        for ((px, &a), &b) in row_out.chunks_exact_mut(3).zip(&line).zip(&line[1..]) {
-            let c = if a == b { a } else { std::array::from_fn(|ch| f2.mean(a[ch], b[ch])) };
-            for (o, v) in px.iter_mut().zip(c) {
-                *o = gamma(v);
+        for (k, out_run) in row_out.chunks_mut(3 * F2_RUN).enumerate() {
+            let x0 = k * F2_RUN;
+            let n = out_run.len() / 3;
+            let (a, b) = (&line[x0..x0 + n], &line[x0 + 1..x0 + n + 1]);
+            if a == b {
+                for (px, a) in out_run.chunks_exact_mut(3).zip(a) {
+                    for (o, &v) in px.iter_mut().zip(a) {
+                        *o = gamma(v);
+                    }
+                }
+            } else {
+                for ((px, a), b) in out_run.chunks_exact_mut(3).zip(a).zip(b) {
+                    for (ch, o) in px.iter_mut().enumerate() {
+                        *o = gamma(f2.mean(a[ch], b[ch]));
+                    }
+                }
             }
         }
         *last = line[w - 1].map(gamma);
@@ -1303,7 +1328,8 @@ mod tests {
         let mut rng = Rng(0x0F2_0F2);
         let modes = (VB_BITS_MIN..=VB_BITS_MAX).flat_map(|bits| [VbMode::Log { bits }, VbMode::Linear { bits }]);
         for mode in modes {
-            for (w, h) in [(1, 1), (1, 5), (7, 1), (37, 23)] {
+            // Short runs, and long ones (whole F2 runs equal to their neighbours).
+            for (w, h, change) in [(1, 1, 6), (1, 5, 6), (7, 1, 6), (37, 23, 6), (37, 23, 90), (64, 9, 400)] {
                 let mut vb = VideoBuffer::new(w, h, mode);
                 let one = match mode {
                     VbMode::Log { bits } | VbMode::Linear { bits } => ((1u32 << bits) - 1) as u16,
@@ -1314,8 +1340,8 @@ mod tests {
                 };
                 let mut word = [0; 3];
                 for c in codes.iter_mut() {
-                    // Runs: a new word one time in three, a component at a time.
-                    match rng.next() % 6 {
+                    // Runs: a new word two times in `change`, a component once.
+                    match rng.next() % change {
                         0 | 1 => word = [rng.code(one), rng.code(one), rng.code(one)],
                         2 => word[(rng.next() % 3) as usize] = rng.code(one),
                         _ => {}
