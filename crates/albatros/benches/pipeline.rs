@@ -18,7 +18,8 @@ use albatros::vp::{VideoProcessor, VpConfig};
 use criterion::{criterion_group, criterion_main, Criterion};
 
 /// The scenes benched; `many` is left to `albatros bench` (a frame takes seconds).
-const SCENES: [&str; 4] = ["default", "terrain", "city", "rombm"];
+/// `rombm` against `rhombus` (its top layer alone) shows what depth complexity costs.
+const SCENES: [&str; 5] = ["default", "terrain", "city", "rombm", "rhombus"];
 const SCREEN: Screen = Screen { width: 1920, height: 1080 };
 
 fn stages(c: &mut Criterion) {
