@@ -287,22 +287,19 @@ impl Counters {
     /// pixels on the screen.
     #[inline]
     pub fn count_spp_fragment(&mut self, sets: &[u16; 16], on_screen: u32) {
-        self.count_spp_counts(
-            visible_pixels(sets).count_ones(),
-            sets.iter().map(|v| v.count_ones()).sum::<u32>(),
-            on_screen,
-        );
+        self.count_spp_pixels(visible_pixels(sets).count_ones(), on_screen);
+        self.spp.subpixels_set += u64::from(sets.iter().map(|v| v.count_ones()).sum::<u32>());
     }
 
-    /// [`Self::count_spp_fragment`] from counts the SPPs already have: pixels with
-    /// a visible subpixel and subpixels set.
+    /// The per-fragment part of [`Self::count_spp_fragment`], from the count of pixels
+    /// with a visible subpixel the SPPs already have (the subpixels set are counted
+    /// once per frame: `VideoProcessor::run`).
     #[inline]
-    pub fn count_spp_counts(&mut self, pixels_visible: u32, subpixels_set: u32, on_screen: u32) {
+    pub fn count_spp_pixels(&mut self, pixels_visible: u32, on_screen: u32) {
         let s = &mut self.spp;
         s.fragments += 1;
         s.pixels_touched += u64::from(on_screen);
         s.pixels_visible += u64::from(pixels_visible);
-        s.subpixels_set += u64::from(subpixels_set);
     }
 }
 

@@ -139,9 +139,9 @@ impl VideoProcessor {
                 let poly = &frame.polygons[p];
                 cc.shade::<STATS>(poly, vis, &mut colors, &mut inner);
                 // The VB's writes are counted once per frame (`run`).
-                vb.accumulate::<false>(vis, &colors, &mut inner);
+                vb.accumulate(vis, &colors);
             }
-            None => vb.accumulate::<false>(vis, &[frame.background; 16], &mut inner),
+            None => vb.accumulate(vis, &[frame.background; 16]),
         });
         if STATS {
             self.counters.add(&inner);

@@ -248,7 +248,7 @@ impl SubpixelProcessors {
         }
         if STATS {
             let on_screen = (self.width - frag.px).min(CELL_SIDE) * (self.height - frag.py).min(CELL_SIDE);
-            counters.count_spp_counts(pixels.count_ones(), 0, on_screen);
+            counters.count_spp_pixels(pixels.count_ones(), on_screen);
         }
         let covered = all == FULL;
         Visible { px: frag.px, py: frag.py, sets, first, covered }
@@ -413,6 +413,16 @@ pub fn thinning(t: u8) -> [u16; 16] {
 mod tests {
     use super::*;
 
+    /// Marsaglia's xorshift64: `next(n)` is a deterministic number in `0..n`.
+    fn xorshift(mut state: u64) -> impl FnMut(i64) -> i64 {
+        move |n| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state % n as u64) as i64
+        }
+    }
+
     #[test]
     fn bayer16_is_a_permutation() {
         let mut seen = [false; 256];
@@ -436,13 +446,7 @@ mod tests {
     #[test]
     fn exact_set_is_greater_side_at_the_sixteen_centres() {
         // Lines through random snapped points, some through subpixel centres (ties).
-        let mut state = 0x9E37_79B9_7F4A_7C15u64;
-        let mut next = |n: i64| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state % n as u64) as i64
-        };
+        let mut next = xorshift(0x9E37_79B9_7F4A_7C15);
         for k in 0..20_000 {
             let (x, y) = (next(64) as u32, next(64) as u32);
             let centre = |c: u32, s: i64| i64::from(c) * i64::from(SNAP_ONE) + (2 * s + 1) * i64::from(SNAP_ONE) / 8;
@@ -469,12 +473,9 @@ mod tests {
 
     #[test]
     fn vertex_pixels_are_the_pixels_near_an_end() {
-        let mut state = 0x2545_F491_4F6C_DD1Du64;
-        let mut next = |n: i32| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state % n as u64) as i32
+        let mut next = {
+            let mut next = xorshift(0x2545_F491_4F6C_DD1D);
+            move |n: i32| next(i64::from(n)) as i32
         };
         for _ in 0..20_000 {
             let (px, py) = (4 * next(16) as u32, 4 * next(16) as u32);

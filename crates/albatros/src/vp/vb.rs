@@ -118,7 +118,6 @@ use glam::Vec3;
 
 use super::gq::Share;
 use super::spp::{Visible, CELL_SIDE};
-use crate::model::stats::Counters;
 
 /// Entries of the float path's gamma table (linear input resolution).
 pub const GAMMA_TABLE_SIZE: usize = 4096;
@@ -767,8 +766,9 @@ impl VideoBuffer {
     }
 
     /// Accumulates one cell's visible pixels with their colours (device F1): the
-    /// first fragment of a pixel (`vis.first`) is written, later ones added.
-    pub fn accumulate<const STATS: bool>(&mut self, vis: &Visible, colors: &[Vec3; 16], counters: &mut Counters) {
+    /// first fragment of a pixel (`vis.first`) is written, later ones added. (The
+    /// VB's writes are counted once per frame, by `VideoProcessor::run`.)
+    pub fn accumulate(&mut self, vis: &Visible, colors: &[Vec3; 16]) {
         let width = self.width as usize;
         match &mut self.memory {
             Memory::Float(accum) => for_visible(vis, width, |p, n, first, i| {
@@ -806,12 +806,6 @@ impl VideoBuffer {
                     word[ch] = v as u16;
                 }
             }),
-        }
-        if STATS {
-            let visible = vis.sets.iter().enumerate().fold(0u16, |m, (i, &s)| m | u16::from(s != 0) << i);
-            let first = (vis.first & visible).count_ones();
-            counters.color.first_writes += u64::from(first);
-            counters.color.read_modify_writes += u64::from(visible.count_ones() - first);
         }
     }
 
@@ -901,29 +895,10 @@ impl VideoBuffer {
         }
     }
 
-    /// Copies the pixels of a matrix VP's share from its buffer, of the same size and
+    /// Copies the pixels of matrix VPs' shares from their buffers, of the same size and
     /// mode (P3: the video memories of a VP matrix together form one interleaved
-    /// image), a tile run at a time. Panics on a buffer of another size or mode.
-    pub fn copy_share_from(&mut self, other: &VideoBuffer, share: &Share) {
-        assert_eq!(
-            (self.width, self.height, self.mode()),
-            (other.width, other.height, other.mode()),
-            "video buffers of different sizes or modes"
-        );
-        let (w, h) = (self.width as usize, self.height as usize);
-        match (&mut self.memory, &other.memory) {
-            (Memory::Float(dst), Memory::Float(src)) => copy_share(dst, src, w, h, share),
-            (Memory::Log { codes: dst, .. }, Memory::Log { codes: src, .. })
-            | (Memory::Linear { codes: dst, .. }, Memory::Linear { codes: src, .. }) => {
-                copy_share(dst, src, w, h, share)
-            }
-            _ => unreachable!("the modes were compared above"),
-        }
-    }
-
-    /// [`Self::copy_share_from`] for several buffers at once, in bands of rows on the
-    /// current rayon pool (the matrix's gathering of its VPs' memories). The same
-    /// result as copying them one after another: the shares do not overlap.
+    /// image), a tile run at a time, in bands of rows on the current rayon pool. The
+    /// shares do not overlap. Panics on a buffer of another size or mode.
     pub fn copy_shares_from(&mut self, others: &[(&VideoBuffer, &Share)]) {
         for (other, _) in others {
             assert_eq!(
@@ -982,12 +957,8 @@ impl VideoBuffer {
     }
 }
 
-/// Copies the pixels of a matrix VP's share: whole tile runs of the rows it owns.
-fn copy_share<T: Copy>(dst: &mut [T], src: &[T], width: usize, height: usize, share: &Share) {
-    copy_share_rows(dst, src, width, 0..height, share);
-}
-
-/// [`copy_share`] for rows `rows` only, `dst` holding just those rows.
+/// Copies `share`'s pixels of rows `rows` from `src` (whole screen) to `dst` (holding
+/// just those rows), a tile run at a time.
 fn copy_share_rows<T: Copy>(dst: &mut [T], src: &[T], width: usize, rows: std::ops::Range<usize>, share: &Share) {
     let tile = share.tile as usize;
     let first = rows.start;
@@ -1375,7 +1346,6 @@ mod tests {
             let s = LogScale::get(bits);
             let mut vb = VideoBuffer::new(8, 8, VbMode::Log { bits });
             let mut expect = vec![[0u16; 3]; 64];
-            let mut counters = Counters::default();
             for _ in 0..4000 {
                 let (px, py) = ((rng.next() % 2) as u32 * 4, (rng.next() % 2) as u32 * 4);
                 let sets: [u16; 16] = std::array::from_fn(|_| match rng.next() % 4 {
@@ -1393,7 +1363,7 @@ mod tests {
                     }))
                 });
                 let vis = Visible { px, py, sets, first, covered: false };
-                vb.accumulate::<false>(&vis, &colors, &mut counters);
+                vb.accumulate(&vis, &colors);
                 for (i, &set) in sets.iter().enumerate().filter(|(_, &set)| set != 0) {
                     let p = (py as usize + i / 4) * 8 + px as usize + i % 4;
                     let n = set.count_ones();

@@ -411,15 +411,14 @@ fn vb_cost() {
         let mut rng = Rng(7);
         let colors: [Vec3; 16] =
             std::array::from_fn(|_| Vec3::new(rng.range(0.0, 1.0) as f32, rng.range(0.0, 1.0) as f32, 0.3));
-        let mut counters = albatros::model::stats::Counters::new(0);
         let t = Instant::now();
         for _ in 0..REPEAT {
             for py in (0..h).step_by(4) {
                 for px in (0..w).step_by(4) {
                     let full = Visible { px, py, sets: [0xFFF0; 16], first: 0xFFFF, covered: false };
-                    vb.accumulate::<false>(&full, &colors, &mut counters);
+                    vb.accumulate(&full, &colors);
                     let rest = Visible { px, py, sets: [0x000F; 16], first: 0, covered: true };
-                    vb.accumulate::<false>(&rest, &colors, &mut counters);
+                    vb.accumulate(&rest, &colors);
                 }
             }
         }
