@@ -215,89 +215,95 @@ impl TextureMap {
         self.trilinear(u, v, self.lod(footprint))
     }
 
-    /// [`Self::sample`] for the pixels of a cell at once: lane `i` of the result is
-    /// `self.sample(u[i], v[i], footprint[i])`, bit for bit, for every lane whose bit
-    /// is set in `lanes`; the other lanes are not sampled (their values mean nothing).
+    /// [`Self::sample`] for [`LANES`] pixels side by side: lane `l` of the result is
+    /// `self.sample(u[l], v[l], footprint[l])`, bit for bit, for the first `live`
+    /// lanes; the other lanes are not sampled (their values mean nothing).
     ///
     /// The same operations as [`Self::sample`] lane by lane, in the same order, laid
     /// out as arrays over the lanes so that the arithmetic vectorises: only `log2`
     /// and the texel reads go lane by lane. Both levels' look-ups share the
-    /// fractional parts of `u`, `v`.
-    pub fn sample_cell(
+    /// fractional parts of `u`, `v`; when no lane blends in a coarser level (every
+    /// `kr` is 0: a magnified map, or the last level), that level is not read.
+    #[inline]
+    pub fn sample_lanes(
         &self,
-        u: &[f32; CELL_LANES],
-        v: &[f32; CELL_LANES],
-        footprint: &[f32; CELL_LANES],
-        lanes: u16,
-    ) -> [f32; CELL_LANES] {
+        u: &[f32; LANES],
+        v: &[f32; LANES],
+        footprint: &[f32; LANES],
+        live: usize,
+    ) -> [f32; LANES] {
         let n = self.log2_side;
+        let live = live.min(LANES);
         // Level of detail ([`Self::lod`]); `log2` only where the clamp does not
         // settle it.
         let side = self.side() as f32;
-        let texels: [f32; CELL_LANES] = std::array::from_fn(|i| footprint[i] * side);
         let (top, beyond) = (n as f32, (2u32 << n) as f32);
-        let mut lod = [0.0f32; CELL_LANES];
-        for i in lane_indices(lanes) {
-            lod[i] = lod_of_texels(texels[i], top, beyond);
+        let mut lod = [0.0f32; LANES];
+        for l in 0..live {
+            lod[l] = lod_of_texels(footprint[l] * side, top, beyond);
         }
         // [`Self::trilinear`]: `lod` is already in `0..=n`, so its clamp is the
         // identity (a zero's sign aside, which changes neither `k` nor `kr`), and
         // its integer part is its floor.
-        let floor = lod.map(f32::floor);
-        let kr: [f32; CELL_LANES] = std::array::from_fn(|i| lod[i] - floor[i]);
-        let k = floor.map(small_int);
-        // [`Self::bilinear`] in levels `k` and `k + 1` (`k` again at the last level,
-        // where `kr` is 0 and the coarse value drops out of the blend).
-        let fu = u.map(fract01);
-        let fv = v.map(fract01);
-        let fine = LevelLookup::new(n, &k, &fu, &fv);
-        let coarse = LevelLookup::new(n, &k.map(|k| (k + 1).min(n as i32)), &fu, &fv);
-        // The texel reads: T1..T4 of both levels.
-        let mut t = [[0u8; CELL_LANES]; 8];
-        for i in lane_indices(lanes) {
-            for (q, index) in fine.index.iter().chain(&coarse.index).enumerate() {
-                t[q][i] = self.texels[index[i] as usize];
-            }
+        let mut kr = [0.0f32; LANES];
+        let mut k = [0i32; LANES];
+        let mut fu = [0.0f32; LANES];
+        let mut fv = [0.0f32; LANES];
+        for l in 0..LANES {
+            let floor = lod[l].floor();
+            kr[l] = lod[l] - floor;
+            k[l] = small_int(floor);
+            fu[l] = fract01(u[l]);
+            fv[l] = fract01(v[l]);
         }
-        let mut out = [0.0f32; CELL_LANES];
-        for i in 0..CELL_LANES {
-            let [t1, t2, t3, t4, c1, c2, c3, c4] = [0, 1, 2, 3, 4, 5, 6, 7].map(|q| f32::from(t[q][i]));
-            let fine = eq3(fine.ku[i], fine.kv[i], t1, t2, t3, t4);
-            let coarse = eq3(coarse.ku[i], coarse.kv[i], c1, c2, c3, c4);
-            // Where trilinear keeps the fine value alone (`kr` is 0, and it is at the
-            // last level), the blend is that value exactly: both values are finite,
-            // the fine one is not -0, and `fine + 0 * d` is `fine`.
-            out[i] = fine + kr[i] * (coarse - fine);
+        // [`Self::bilinear`] in level `k`.
+        let fine = LevelLookup::new(n, &k, &fu, &fv).read(&self.texels, live);
+        if kr == [0.0; LANES] {
+            // Trilinear keeps the fine value alone in every lane.
+            return fine;
         }
-        out
+        // And in level `k + 1` (`k` again at the last level, where `kr` is 0 and
+        // the coarse value drops out of the blend).
+        for k in &mut k {
+            *k = (*k + 1).min(n as i32);
+        }
+        let coarse = LevelLookup::new(n, &k, &fu, &fv).read(&self.texels, live);
+        // Where `kr` is 0 the blend is the fine value exactly: both values are
+        // finite, the fine one is not -0, and `fine + 0 * d` is `fine`.
+        std::array::from_fn(|l| fine[l] + kr[l] * (coarse[l] - fine[l]))
     }
 }
 
-/// The bilinear look-ups of [`TextureMap::sample_cell`] in one level per lane: the
+/// Pixels the colour computers and the texture unit work on side by side: one
+/// 128-bit register of `f32` (x86-64-v2's SSE), the visible pixels of a cell
+/// packed into groups of four.
+pub const LANES: usize = 4;
+
+/// The bilinear look-ups of [`TextureMap::sample_lanes`] in one level per lane: the
 /// weights `Ku`, `Kv` and the addresses in the map's texels of `T1..T4` (P2 eq. 3).
 struct LevelLookup {
     /// `Ku` per lane.
-    ku: [f32; CELL_LANES],
+    ku: [f32; LANES],
     /// `Kv` per lane.
-    kv: [f32; CELL_LANES],
+    kv: [f32; LANES],
     /// Where `T1, T2, T3, T4` are, per lane ([`TextureMap::quad`]).
-    index: [[u32; CELL_LANES]; 4],
+    index: [[u32; LANES]; 4],
 }
 
 impl LevelLookup {
-    /// The look-ups in level `k[i]` (at most `n`) at the fractional parts
-    /// `fu[i]`, `fv[i]`, as [`TextureMap::bilinear`] makes them.
+    /// The look-ups in level `k[l]` (at most `n`) at the fractional parts
+    /// `fu[l]`, `fv[l]`, as [`TextureMap::bilinear`] makes them.
     #[inline(always)]
-    fn new(n: u32, k: &[i32; CELL_LANES], fu: &[f32; CELL_LANES], fv: &[f32; CELL_LANES]) -> Self {
-        let mut lookup = Self { ku: [0.0; CELL_LANES], kv: [0.0; CELL_LANES], index: [[0; CELL_LANES]; 4] };
+    fn new(n: u32, k: &[i32; LANES], fu: &[f32; LANES], fv: &[f32; LANES]) -> Self {
+        let mut lookup = Self { ku: [0.0; LANES], kv: [0.0; LANES], index: [[0; LANES]; 4] };
         let [t1, t2, t3, t4] = &mut lookup.index;
-        for i in 0..CELL_LANES {
+        for l in 0..LANES {
             // The side `2^(n-k)`, exactly `(1 << (n - k)) as f32`, from its bits.
-            let side = f32::from_bits((127 + (n as i32 - k[i]) as u32) << 23);
-            let (i0, ku) = split(fu[i] * side - 0.5);
-            let (j0, kv) = split(fv[i] * side - 0.5);
-            lookup.ku[i] = ku;
-            lookup.kv[i] = kv;
+            let side = f32::from_bits((127 + (n as i32 - k[l]) as u32) << 23);
+            let (i0, ku) = split(fu[l] * side - 0.5);
+            let (j0, kv) = split(fv[l] * side - 0.5);
+            lookup.ku[l] = ku;
+            lookup.kv[l] = kv;
             let side = small_int(side) as u32;
             let mask = side - 1;
             // Level k starts after levels 0..k, `4^n + ... + 4^(n-k+1)` texels:
@@ -306,9 +312,27 @@ impl LevelLookup {
             let start = ((4u32 << (2 * n)) - 4 * side * side).wrapping_mul(0xAAAA_AAAB);
             let (c0, c1) = (i0 as u32 & mask, (i0 as u32).wrapping_add(1) & mask);
             let (r0, r1) = ((j0 as u32 & mask) * side + start, ((j0 as u32).wrapping_add(1) & mask) * side + start);
-            (t1[i], t2[i], t3[i], t4[i]) = (r0 + c0, r1 + c0, r0 + c1, r1 + c1);
+            (t1[l], t2[l], t3[l], t4[l]) = (r0 + c0, r1 + c0, r0 + c1, r1 + c1);
         }
         lookup
+    }
+
+    /// P2 eq. (3) per lane: the texels `T1..T4` read for the first `live` lanes
+    /// (the others read as 0), then interpolated.
+    #[inline(always)]
+    fn read(&self, texels: &[u8], live: usize) -> [f32; LANES] {
+        let mut t = [[0u8; LANES]; 4];
+        for l in 0..live {
+            for q in 0..4 {
+                t[q][l] = texels[self.index[q][l] as usize];
+            }
+        }
+        let mut out = [0.0f32; LANES];
+        for l in 0..LANES {
+            let (t1, t2, t3, t4) = (f32::from(t[0][l]), f32::from(t[1][l]), f32::from(t[2][l]), f32::from(t[3][l]));
+            out[l] = eq3(self.ku[l], self.kv[l], t1, t2, t3, t4);
+        }
+        out
     }
 }
 
@@ -318,19 +342,6 @@ impl LevelLookup {
 fn small_int(x: f32) -> i32 {
     const MAGIC: f32 = 12_582_912.0;
     (x + MAGIC).to_bits() as i32 - MAGIC.to_bits() as i32
-}
-
-/// The lanes of [`TextureMap::sample_cell`]: the pixels of a 4 x 4 cell.
-pub const CELL_LANES: usize = 16;
-
-/// The indices of the set bits of `lanes`, lowest first.
-#[inline]
-fn lane_indices(mut lanes: u16) -> impl Iterator<Item = usize> {
-    std::iter::from_fn(move || {
-        let i = lanes.trailing_zeros() as usize;
-        lanes &= lanes.wrapping_sub(1);
-        (i < CELL_LANES).then_some(i)
-    })
 }
 
 /// [`TextureMap::lod`] of a footprint of `texels` level-0 texels, `top` = `n`,
@@ -767,44 +778,35 @@ mod tests {
         let odd = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -1e30, 1e30, -1e-12, 0.0, -0.0, 0.999_999_9];
         for map in [ramp(1), ramp(2), ramp(16), builtin("grass").unwrap(), TextureMap::build(12, vec![9; 1 << 24])] {
             let scale = map.side() as f32;
-            for round in 0..400 {
-                let u: [f32; CELL_LANES] = std::array::from_fn(|i| match round % 4 {
+            for round in 0..1600 {
+                let u: [f32; LANES] = std::array::from_fn(|i| match round % 4 {
                     0 => odd[(i + round) % odd.len()],
                     _ => (next() - 0.5) * 40.0,
                 });
-                let v: [f32; CELL_LANES] = std::array::from_fn(|_| (next() - 0.5) * 40.0);
-                let footprint: [f32; CELL_LANES] = std::array::from_fn(|i| match round % 3 {
-                    0 if i % 5 == 0 => odd[(i + round) % odd.len()],
+                let v: [f32; LANES] = std::array::from_fn(|_| (next() - 0.5) * 40.0);
+                let footprint: [f32; LANES] = std::array::from_fn(|i| match round % 3 {
+                    0 if (i + round) % 5 == 0 => odd[(i + round) % odd.len()],
                     _ => (next() * 30.0 - 15.0).exp2() / scale,
                 });
-                let lanes = (next() * 65536.0) as u16 | 1;
-                let t = map.sample_cell(&u, &v, &footprint, lanes);
-                for i in 0..CELL_LANES {
-                    if lanes & (1 << i) != 0 {
-                        let expect = plain_sample(&map, u[i], v[i], footprint[i]);
-                        assert_eq!(
-                            t[i].to_bits(),
-                            expect.to_bits(),
-                            "{map:?} u {} v {} fp {}",
-                            u[i],
-                            v[i],
-                            footprint[i]
-                        );
-                        assert_eq!(map.sample(u[i], v[i], footprint[i]).to_bits(), expect.to_bits());
-                    }
+                let live = 1 + round % LANES;
+                let t = map.sample_lanes(&u, &v, &footprint, live);
+                for i in 0..live {
+                    let expect = plain_sample(&map, u[i], v[i], footprint[i]);
+                    assert_eq!(t[i].to_bits(), expect.to_bits(), "{map:?} u {} v {} fp {}", u[i], v[i], footprint[i]);
+                    assert_eq!(map.sample(u[i], v[i], footprint[i]).to_bits(), expect.to_bits());
                 }
             }
             // Exact powers of two and their neighbours: the clamp's edges.
             for e in -3..=14 {
                 let x = (e as f32).exp2() / scale;
-                let fp: [f32; CELL_LANES] = std::array::from_fn(|i| match i % 3 {
+                let fp: [f32; LANES] = std::array::from_fn(|i| match i % 3 {
                     0 => x,
                     1 => f32::from_bits(x.to_bits() + 1),
                     _ => f32::from_bits(x.to_bits() - 1),
                 });
-                let (u, v) = ([0.3; CELL_LANES], [0.7; CELL_LANES]);
-                let t = map.sample_cell(&u, &v, &fp, u16::MAX);
-                for i in 0..CELL_LANES {
+                let (u, v) = ([0.3; LANES], [0.7; LANES]);
+                let t = map.sample_lanes(&u, &v, &fp, LANES);
+                for i in 0..LANES {
                     assert_eq!(t[i].to_bits(), plain_sample(&map, 0.3, 0.7, fp[i]).to_bits());
                 }
             }
