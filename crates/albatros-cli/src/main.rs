@@ -17,6 +17,7 @@ use albatros::db::{builtin, load, Scene, Screen};
 use albatros::frame::FrameList;
 use albatros::gp::{self, Clipper, Database, GpConfig, GpCounters, GpMemory};
 use albatros::matrix::Matrix;
+use albatros::pipeline::Pipeline;
 use albatros::vp::gq::{CellProcessors, MaskLevels};
 use albatros::vp::tables::{GqRom, SppMode, SppTable};
 use albatros::vp::texture::TextureMaps;
@@ -122,8 +123,9 @@ struct BenchArgs {
     /// P1's mask rule only (no hierarchical coverage).
     #[arg(long)]
     p1_masks: bool,
-    /// Run the GP on frame n+1 while the VP renders frame n (P1's double-buffered
-    /// frame memory): reports the interval between finished frames.
+    /// Run the GP on frame n+1 while the VPs render frame n, on the same threads
+    /// (P1's double-buffered frame memory): reports the interval between finished
+    /// frames.
     #[arg(long)]
     pipeline: bool,
 }
@@ -496,9 +498,9 @@ fn bench(args: BenchArgs) -> Result<()> {
     Ok(())
 }
 
-/// P1's double-buffered frame memory: the GP fills one half (frame n+1) on its own
-/// thread while the VP reads the other (frame n). Returns the intervals between
-/// finished frames, in milliseconds.
+/// P1's double-buffered frame memory ([`Pipeline`]): the GP sets up frame n+1 while
+/// the matrix renders and reads out frame n, both on the matrix's `threads` threads.
+/// Returns the intervals between finished frames, in milliseconds.
 fn pipelined(
     db: &Database,
     screen: Screen,
@@ -509,36 +511,21 @@ fn pipelined(
 ) -> Result<Vec<f64>> {
     let mut matrix = Matrix::for_threads(screen.width, screen.height, vp_cfg, threads)?;
     matrix.set_textures(maps.clone());
-    // The two halves of FB: one filled by the GP while the VP reads the other; a
-    // half goes back to the GP once the VP is done with it.
-    let (tx, rx) = std::sync::mpsc::sync_channel::<FrameList>(1);
-    let (back_tx, back_rx) = std::sync::mpsc::channel::<FrameList>();
-    for _ in 0..2 {
-        back_tx.send(FrameList::default()).expect("the receiver is alive");
-    }
+    let gp_cfg = GpConfig { threads, ..GpConfig::default() };
+    let mut pipeline = Pipeline::new(db, screen, gp_cfg, matrix);
+    // The displayed image, kept like a display's frame store.
+    let mut shown = Image { width: 0, height: 0, pixels: Vec::new() };
+    // The first step only sets up a frame.
+    pipeline.step(&db.scene.eye, &mut shown);
     let mut intervals = Vec::with_capacity(frames);
-    std::thread::scope(|s| {
-        s.spawn(move || {
-            let (mut counters, mut memory) = (GpCounters::default(), GpMemory::default());
-            for _ in 0..frames {
-                let Ok(mut half) = back_rx.recv() else { break };
-                gp::frame_into(db, &db.scene.eye, screen, &GpConfig::default(), &mut counters, &mut memory, &mut half);
-                if tx.send(half).is_err() {
-                    break;
-                }
-            }
-        });
-        let mut last = std::time::Instant::now();
-        for frame in rx.iter() {
-            let image = matrix.render(&frame);
-            std::hint::black_box(image);
-            // The GP may be done already: then the half is not needed again.
-            let _ = back_tx.send(frame);
-            let now = std::time::Instant::now();
-            intervals.push((now - last).as_secs_f64() * 1e3);
-            last = now;
-        }
-    });
+    let mut last = std::time::Instant::now();
+    for _ in 0..frames {
+        pipeline.step(&db.scene.eye, &mut shown);
+        std::hint::black_box(&shown);
+        let now = std::time::Instant::now();
+        intervals.push((now - last).as_secs_f64() * 1e3);
+        last = now;
+    }
     Ok(intervals)
 }
 

@@ -16,4 +16,5 @@ pub mod gp;
 pub mod matrix;
 pub mod model;
 pub mod peer;
+pub mod pipeline;
 pub mod vp;

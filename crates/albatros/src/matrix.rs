@@ -31,7 +31,9 @@ pub struct Matrix {
     /// Tile side in pixels (1 for P3's pixel interleave).
     pub tile: u32,
     vps: Vec<VideoProcessor>,
-    pool: rayon::ThreadPool,
+    /// The matrix's threads (shared, so that [`Self::render_beside`] can run a
+    /// frame on them while it borrows the VPs).
+    pool: std::sync::Arc<rayon::ThreadPool>,
 }
 
 /// A matrix shape that is not possible.
@@ -94,7 +96,7 @@ impl Matrix {
             .num_threads(threads.max(1))
             .build()
             .map_err(|e| MatrixError::Threads(e.to_string()))?;
-        Ok(Self { p, q, tile, vps, pool })
+        Ok(Self { p, q, tile, vps, pool: std::sync::Arc::new(pool) })
     }
 
     /// A matrix for `n` threads: `n` VPs in a near-square shape, interleaved by
@@ -144,6 +146,30 @@ impl Matrix {
     /// instead of competing with them from a pool of their own.
     pub fn install<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
         self.pool.install(f)
+    }
+
+    /// Renders `frame` and reads it out into `image` while `beside` runs on the same
+    /// threads, and returns what `beside` returns: P1's double-buffered frame
+    /// memory, the GP setting up the next frame in one half while the VPs read the
+    /// other (see [`crate::pipeline`]). The threads take whichever work is waiting,
+    /// so the GP's serial part overlaps the VPs' work instead of leaving cores idle.
+    /// The image is the one [`Self::render_frame`] and [`Self::read_out_into`] give.
+    pub fn render_beside<R: Send>(
+        &mut self,
+        frame: &FrameList,
+        image: &mut Image,
+        beside: impl FnOnce() -> R + Send,
+    ) -> R {
+        let pool = std::sync::Arc::clone(&self.pool);
+        // Inside the pool, the nested `install`s of `render_frame` and
+        // `read_out_into` run in place on the current worker.
+        pool.install(|| {
+            rayon::join(beside, || {
+                self.render_frame(frame);
+                self.read_out_into(image);
+            })
+            .0
+        })
     }
 
     /// Gives every VP the texture maps.

@@ -7,6 +7,7 @@ mod gp;
 mod load;
 mod model;
 mod peer;
+mod pipeline;
 mod texture;
 mod vb;
 mod vp;
