@@ -20,6 +20,7 @@ use albatros::matrix::Matrix;
 use albatros::pipeline::Pipeline;
 use albatros::vp::gq::{CellProcessors, MaskLevels};
 use albatros::vp::tables::{GqRom, SppMode, SppTable};
+use albatros::vp::tac::TacRom;
 use albatros::vp::texture::TextureMaps;
 use albatros::vp::vb::{Image, Readout, VbMode};
 use albatros::vp::{VideoProcessor, VpConfig};
@@ -535,6 +536,8 @@ fn tables(out: &Path) -> Result<()> {
         ("gq_rom.hex", GqRom::get().to_hex()),
         ("spp_area.hex", SppTable::get(SppMode::Area).to_hex()),
         ("spp_sample.hex", SppTable::get(SppMode::Sample).to_hex()),
+        ("tac_fog.hex", TacRom::get().fog_hex()),
+        ("tac_log2.hex", TacRom::get().log2_hex()),
     ];
     for (name, text) in files {
         let path = out.join(name);

@@ -70,6 +70,17 @@ fn tables_writes_hex_files() {
     assert!(rom.lines().all(|l| l.len() == 2 && u8::from_str_radix(l, 16).is_ok()));
     let spp = std::fs::read_to_string(dir.join("spp_area.hex")).unwrap();
     assert_eq!(spp.lines().count(), 2500);
+    // The TAC's ROMs: f32 bit patterns, exp(-k/256) and log2(1 + k/256).
+    let word = |l: &str| f32::from_bits(u32::from_str_radix(l, 16).unwrap());
+    let fog = std::fs::read_to_string(dir.join("tac_fog.hex")).unwrap();
+    let fog: Vec<f32> = fog.lines().map(word).collect();
+    assert_eq!(fog.len(), 4098);
+    assert_eq!((fog[0], fog[4096], fog[4097]), (1.0, 0.0, 0.0));
+    assert!((fog[256] - (-1.0f32).exp()).abs() < 1e-7);
+    let log2 = std::fs::read_to_string(dir.join("tac_log2.hex")).unwrap();
+    let log2: Vec<f32> = log2.lines().map(word).collect();
+    assert_eq!(log2.len(), 257);
+    assert_eq!((log2[0], log2[128], log2[256]), (0.0, 1.5f32.log2(), 1.0));
     cleanup(&dir);
 }
 

@@ -11,7 +11,8 @@
 //! blends the face's two colours, `C0 = C1 T + C2 (1 - T)` (an untextured face, or
 //! one whose map is missing, has its flat colour). Then brightness: `C0 I`.
 //!
-//! Fog (P2): `C = C0 f + C_fog (1 - f)`, `f = exp(-Z / Z0)`.
+//! Fog (P2): `C = C0 f + C_fog (1 - f)`, `f = exp(-Z / Z0)` from the TAC's ROM
+//! ([`super::tac`]).
 //!
 //! The visible pixels of a cell are dealt to four channels by their position in each
 //! 2 x 2 quad (channel `(x & 1) + 2 (y & 1)`), so that an edge's pixels spread evenly.
@@ -19,6 +20,7 @@
 use glam::Vec3;
 
 use super::spp::Visible;
+use super::tac::TacRom;
 use super::texture::{TextureMap, TextureMaps, LANES};
 use crate::frame::{FrameList, FramePolygon, PolyTexture};
 use crate::model::stats::Counters;
@@ -91,6 +93,7 @@ impl<'a> ColorComputers<'a> {
             poly.texture.as_ref().and_then(|t| Some((t, self.textures.get(t.map)?)));
         let (u_q, v_q) = texture.map_or((0.0, 0.0), |(t, _)| (t.u.eval(qx, qy), t.v.eval(qx, qy)));
         let fog = self.fog_color.to_array();
+        let rom = TacRom::get();
         // The visible pixels (`4 y + x`), packed; a last group's spare lanes repeat
         // its last pixel.
         let count = visible.count_ones() as usize;
@@ -129,11 +132,11 @@ impl<'a> ColorComputers<'a> {
                 }
                 None => poly.color.to_array().map(|c| [c; LANES]),
             };
-            // Fog: `exp(-0)` is 1 exactly, so no fog needs no `exp`.
+            // Fog, `exp(-Z / Z0)` from the TAC's ROM; none is `f = 1`.
             let mut f = [1.0f32; LANES];
             if self.inv_visibility != 0.0 {
                 for l in 0..live {
-                    f[l] = (-z[l] * self.inv_visibility).exp();
+                    f[l] = rom.fog(z[l] * self.inv_visibility);
                 }
             }
             let c: [[f32; LANES]; 3] = std::array::from_fn(|c| {
@@ -176,7 +179,7 @@ mod tests {
             }
             None => poly.color,
         };
-        let f = if cc.inv_visibility != 0.0 { (-z * cc.inv_visibility).exp() } else { 1.0 };
+        let f = if cc.inv_visibility != 0.0 { TacRom::get().fog(z * cc.inv_visibility) } else { 1.0 };
         let c = c0.to_array();
         let fog = cc.fog_color.to_array();
         Vec3::from_array(std::array::from_fn(|k| c[k] * intensity * f + fog[k] * (1.0 - f)))

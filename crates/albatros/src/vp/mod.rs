@@ -16,6 +16,7 @@ pub mod edge;
 pub mod gq;
 pub mod spp;
 pub mod tables;
+pub mod tac;
 pub mod texture;
 pub mod vb;
 

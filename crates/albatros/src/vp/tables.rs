@@ -298,6 +298,12 @@ spp_sample.hex 2500 x 16 bits. The same, point-sample build.
                address = ((TG*2 + LR)*25 + q1+8)*25 + q2+8
                  q = round(8 * (V - pixel origin)), saturated to -8..16 (eighths of a pixel)
                data = subpixel set, bit 4*sy+sx for subpixel column sx, row sy from the pixel's top-left
+tac_fog.hex    4098 x 32 bits. The texture address computers' (TAC, P2) fog ROM: f32 bit patterns.
+               address k: exp(-k/256) for k < 4096, then 0 (f = exp(-Z/Z0) is read at 256 Z/Z0,
+               interpolated linearly between k and k+1)
+tac_log2.hex   257 x 32 bits. The TAC's log2 ROM for the level of detail: f32 bit patterns.
+               address k: log2(1 + k/256), k = the top 8 mantissa bits of the f32 footprint;
+               log2(x) = exponent + the entry, interpolated linearly with the next 15 bits
 ";
 
 #[cfg(test)]

@@ -14,7 +14,7 @@
 //! - **Trilinear**: bilinear interpolation in a level between the four texel centres
 //!   nearest to the point (P2 eq. 3), in two adjacent levels, blended by the footprint.
 //!   The level of detail is `lod = log2((S/L) 2^n)`, the footprint in level-0 texels,
-//!   clamped to the pyramid.
+//!   clamped to the pyramid; the `log2` is the TAC's ROM ([`super::tac`]).
 //!
 //! **Texel format**: `u8`, `T = texel / 255`, as the hardware's map memory held it.
 //! Texel `(i, j)` is column `i` (along `u`, texel `i` covers `u` in
@@ -32,6 +32,7 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
+use super::tac::TacRom;
 use crate::db::{Scene, TextureSource};
 
 /// The names of the built-in procedural maps ([`builtin`]), the names a scene's
@@ -188,8 +189,8 @@ impl TextureMap {
     /// of the footprint in level-0 texels, clamped to `0..=n` (NaN gives 0).
     #[inline]
     pub fn lod(&self, footprint: f32) -> f32 {
-        // `max` before `min`: `NaN.max(0.0)` is 0.
-        (footprint * self.side() as f32).log2().max(0.0).min(self.log2_side as f32)
+        let n = self.log2_side;
+        lod_of_texels(TacRom::get(), footprint * self.side() as f32, n as f32, (2u32 << n) as f32)
     }
 
     /// Trilinear filtering: bilinear in levels `floor(lod)` and the next, blended by
@@ -220,8 +221,8 @@ impl TextureMap {
     /// lanes; the other lanes are not sampled (their values mean nothing).
     ///
     /// The same operations as [`Self::sample`] lane by lane, in the same order, laid
-    /// out as arrays over the lanes so that the arithmetic vectorises: only `log2`
-    /// and the texel reads go lane by lane. Both levels' look-ups share the
+    /// out as arrays over the lanes so that the arithmetic vectorises: only the
+    /// TAC's `log2` ROM and the texel reads go lane by lane. Both levels' look-ups share the
     /// fractional parts of `u`, `v`; when no lane blends in a coarser level (every
     /// `kr` is 0: a magnified map, or the last level), that level is not read.
     #[inline]
@@ -234,13 +235,11 @@ impl TextureMap {
     ) -> [f32; LANES] {
         let n = self.log2_side;
         let live = live.min(LANES);
-        // Level of detail ([`Self::lod`]); `log2` only where the clamp does not
-        // settle it.
-        let side = self.side() as f32;
-        let (top, beyond) = (n as f32, (2u32 << n) as f32);
+        // Level of detail ([`Self::lod`]).
+        let (rom, side, top, beyond) = (TacRom::get(), self.side() as f32, n as f32, (2u32 << n) as f32);
         let mut lod = [0.0f32; LANES];
         for l in 0..live {
-            lod[l] = lod_of_texels(footprint[l] * side, top, beyond);
+            lod[l] = lod_of_texels(rom, footprint[l] * side, top, beyond);
         }
         // [`Self::trilinear`]: `lod` is already in `0..=n`, so its clamp is the
         // identity (a zero's sign aside, which changes neither `k` nor `kr`), and
@@ -345,13 +344,15 @@ fn small_int(x: f32) -> i32 {
 }
 
 /// [`TextureMap::lod`] of a footprint of `texels` level-0 texels, `top` = `n`,
-/// `beyond` = `2^(n+1)`, without `log2` where the clamp settles the result: at most
-/// one texel (or NaN) is level 0, since `log2` is then at most 0 (or NaN); from
-/// `2^(n+1)` on it is `n`, since `log2` is then above `n` by far more than its error.
-#[inline]
-fn lod_of_texels(texels: f32, top: f32, beyond: f32) -> f32 {
+/// `beyond` = `2^(n+1)`: the TAC's `log2` ([`TacRom::log2`]) clamped to `0..=n`,
+/// read only where the clamp does not settle it: at most one texel (or NaN) is level
+/// 0; from `2^(n+1)` texels on (an infinite footprint too) it is `n`, since the
+/// ROM's `log2` of such a number is its exponent, at least `n + 1`, plus a fraction
+/// that is never negative.
+#[inline(always)]
+fn lod_of_texels(rom: &TacRom, texels: f32, top: f32, beyond: f32) -> f32 {
     if texels > 1.0 && texels < beyond {
-        texels.log2().max(0.0).min(top)
+        rom.log2(texels).min(top)
     } else if texels > 1.0 {
         top
     } else {
@@ -746,7 +747,8 @@ mod tests {
     /// for the faster paths.
     fn plain_sample(m: &TextureMap, u: f32, v: f32, footprint: f32) -> f32 {
         let n = m.log2_side();
-        let lod = (footprint * m.side() as f32).log2().max(0.0).min(n as f32);
+        let texels = footprint * m.side() as f32;
+        let lod = if texels > 1.0 { TacRom::get().log2(texels).min(n as f32) } else { 0.0 };
         let bilinear = |k: u32| {
             let side = (1u32 << (n - k)) as f32;
             let s = fract01(u) * side - 0.5;

@@ -1,0 +1,170 @@
+//! The ROM tables of the texture address computers (TAC, P2 fig. 1, «ТАС»): the two
+//! per-pixel functions the CC does not compute by arithmetic.
+//!
+//! P2: the TAC multiplies by `Z`, finds the fog factor `exp(-Z/Z0)` and the texture
+//! address with the trilinear coefficients, one pixel per clock in each of four
+//! TACs. A machine of that time read such functions from ROM; so does this one:
+//!
+//! - **Fog ROM**: `f = exp(-x)`, `x = Z/Z0`, tabulated at `x = k / 256` for
+//!   `k = 0..4096` (`x` up to 16, where `exp(-16) = 1.1e-7` is below anything a VB
+//!   mode shows: from there on `f = 0`, fully fogged), and interpolated linearly
+//!   between entries: error below `3e-6` (relative, and absolute near the end).
+//! - **`log2` ROM** for the level of detail `log2(S/L 2^n)`: the exponent of the
+//!   `f32` footprint is the integer part; the fraction is `log2(1 + m)` of the
+//!   mantissa `m`, tabulated at `m = k / 256` and interpolated linearly: error below
+//!   `4e-6` of a level, exact at powers of two (the levels themselves).
+//!
+//! Both replace libm's `exp` and `log2` (which cost about 27 instructions each per
+//! pixel here and are not what the hardware did); each is a few operations and two
+//! reads. The entries are `f32` rounded from `f64`; `albatros tables` writes them.
+
+use std::sync::OnceLock;
+
+/// Fog ROM entries per unit of `x = Z / Z0`.
+pub const FOG_STEPS_PER_UNIT: u32 = 256;
+
+/// `x = Z / Z0` from which the fog is total (`f = 0`).
+pub const FOG_RANGE: u32 = 16;
+
+/// Fog ROM entries: `k = 0..=4096` and a spare zero, so that the interpolation at
+/// the end of the range reads inside the table.
+const FOG_ENTRIES: usize = (FOG_RANGE * FOG_STEPS_PER_UNIT) as usize + 2;
+
+/// Bits of the mantissa that address the `log2` ROM.
+pub const LOG2_ADDRESS_BITS: u32 = 8;
+
+/// `log2` ROM entries: `m = k / 256` for `k = 0..=256`.
+const LOG2_ENTRIES: usize = (1 << LOG2_ADDRESS_BITS) + 1;
+
+/// Mantissa bits of an `f32`.
+const MANTISSA_BITS: u32 = 23;
+
+/// The TAC's ROMs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TacRom {
+    /// `exp(-k / 256)`, then zeros from `k = 4096`.
+    fog: Box<[f32; FOG_ENTRIES]>,
+    /// `log2(1 + k / 256)`.
+    log2: [f32; LOG2_ENTRIES],
+}
+
+impl TacRom {
+    /// The ROM contents (computed once).
+    pub fn get() -> &'static TacRom {
+        static ROM: OnceLock<TacRom> = OnceLock::new();
+        ROM.get_or_init(Self::build)
+    }
+
+    fn build() -> Self {
+        let full = (FOG_RANGE * FOG_STEPS_PER_UNIT) as usize;
+        let fog = Box::new(std::array::from_fn(|k| {
+            if k < full {
+                (-(k as f64) / f64::from(FOG_STEPS_PER_UNIT)).exp() as f32
+            } else {
+                0.0
+            }
+        }));
+        let log2 = std::array::from_fn(|k| (1.0 + k as f64 / f64::from(1u32 << LOG2_ADDRESS_BITS)).log2() as f32);
+        Self { fog, log2 }
+    }
+
+    /// The fog factor `f = exp(-x)` for `x = Z / Z0`: 1 at 0, 0 from
+    /// [`FOG_RANGE`] on (and for infinities); a NaN or negative `x` gives 1.
+    #[inline]
+    pub fn fog(&self, x: f32) -> f32 {
+        // `max` before `min`, not `clamp`: NaN goes to 0 (no fog), where `clamp`
+        // would keep it.
+        let s = (x * FOG_STEPS_PER_UNIT as f32).max(0.0).min((FOG_RANGE * FOG_STEPS_PER_UNIT) as f32);
+        // Non-negative and at most 4096: the cast is the floor, and `k + 1` is in
+        // the table. (Through `i32`: a direct cast to `usize` costs several
+        // instructions more.)
+        let k = s as i32 as usize;
+        let t = s - k as f32;
+        let (a, b) = (self.fog[k], self.fog[(k + 1).min(FOG_ENTRIES - 1)]);
+        a + t * (b - a)
+    }
+
+    /// `log2(x)` for a positive normal `x` (the callers pass footprints above one
+    /// texel): the exponent plus the ROM's fraction of the mantissa.
+    #[inline]
+    pub fn log2(&self, x: f32) -> f32 {
+        let bits = x.to_bits();
+        let exponent = ((bits >> MANTISSA_BITS) & 0xFF) as i32 - 127;
+        let low_bits = MANTISSA_BITS - LOG2_ADDRESS_BITS;
+        let k = ((bits >> low_bits) & ((1 << LOG2_ADDRESS_BITS) - 1)) as usize;
+        let t = (bits & ((1 << low_bits) - 1)) as f32 * (1.0 / (1u32 << low_bits) as f32);
+        let (a, b) = (self.log2[k], self.log2[(k + 1).min(LOG2_ENTRIES - 1)]);
+        exponent as f32 + (a + t * (b - a))
+    }
+
+    /// The fog ROM's entries.
+    pub fn fog_table(&self) -> &[f32] {
+        &self.fog[..]
+    }
+
+    /// The `log2` ROM's entries.
+    pub fn log2_table(&self) -> &[f32] {
+        &self.log2
+    }
+
+    /// The fog ROM in `$readmemh` form: one `f32` bit pattern in hex per line, in
+    /// address order (`albatros tables` writes it).
+    pub fn fog_hex(&self) -> String {
+        self.fog.iter().map(|v| format!("{:08x}\n", v.to_bits())).collect()
+    }
+
+    /// The `log2` ROM in `$readmemh` form, like [`Self::fog_hex`].
+    pub fn log2_hex(&self) -> String {
+        self.log2.iter().map(|v| format!("{:08x}\n", v.to_bits())).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fog_rom_follows_exp_and_its_ends() {
+        let rom = TacRom::get();
+        assert_eq!(rom.fog(0.0), 1.0);
+        assert_eq!(rom.fog(-3.0), 1.0);
+        assert_eq!(rom.fog(f32::NAN), 1.0);
+        assert_eq!(rom.fog(16.0), 0.0);
+        assert_eq!(rom.fog(f32::INFINITY), 0.0);
+        // Relative error before the last step, absolute error everywhere.
+        let (mut relative, mut absolute) = (0.0f64, 0.0f64);
+        for i in 0..220_000 {
+            let x = i as f32 * 8e-5;
+            let want = (-f64::from(x)).exp();
+            let error = (f64::from(rom.fog(x)) - want).abs();
+            absolute = absolute.max(error);
+            if x < 15.99 {
+                relative = relative.max(error / want);
+            }
+        }
+        assert!(relative < 3e-6, "fog ROM relative error {relative}");
+        assert!(absolute < 3e-6, "fog ROM absolute error {absolute}");
+        // Monotone: more distance, more fog.
+        let mut last = 2.0;
+        for i in 0..=(17 * 256 * 4) {
+            let f = rom.fog(i as f32 / 1024.0);
+            assert!(f <= last, "fog rises at x = {}", i as f32 / 1024.0);
+            last = f;
+        }
+    }
+
+    #[test]
+    fn log2_rom_follows_log2_and_is_exact_at_powers_of_two() {
+        let rom = TacRom::get();
+        for e in -10..40 {
+            assert_eq!(rom.log2((e as f32).exp2()), e as f32);
+        }
+        let mut worst = 0.0f64;
+        let mut x = 1.0f32;
+        while x < 8192.0 {
+            worst = worst.max((f64::from(rom.log2(x)) - f64::from(x).log2()).abs());
+            x *= 1.000_37;
+        }
+        assert!(worst < 4e-6, "log2 ROM error {worst}");
+    }
+}
