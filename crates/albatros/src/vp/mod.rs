@@ -142,7 +142,7 @@ impl VideoProcessor {
                 // The VB's writes are counted once per frame (`run`).
                 vb.accumulate(vis, &colors);
             }
-            None => vb.accumulate(vis, &[frame.background; 16]),
+            None => vb.accumulate_flat(vis, frame.background),
         });
         if STATS {
             self.counters.add(&inner);

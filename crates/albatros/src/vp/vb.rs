@@ -308,6 +308,8 @@ pub struct LogScale {
     softplus_padded: Box<[u16; SOFTPLUS_PADDED]>,
     /// `T[0] = round(4 K ln 2)`: halving in quarter codes.
     ln2: i32,
+    /// 8 bits only: F2's first pass as a table ([`PairMeans`]).
+    pair_means: Option<PairMeans>,
 }
 
 impl LogScale {
@@ -350,8 +352,12 @@ impl LogScale {
             softplus,
             softplus_padded,
             ln2,
+            pair_means: None,
         };
         scale.build_encoder();
+        if bits == PAIR_MEANS_BITS {
+            scale.pair_means = Some(PairMeans::build(&scale));
+        }
         scale
     }
 
@@ -632,6 +638,61 @@ impl<'a> LogArith<'a> {
     }
 }
 
+/// The bit count whose F2 first pass is a table ([`PairMeans`]): P1's 8-bit code,
+/// the default (`2^16` pairs; 10 bits would take `2^20`).
+const PAIR_MEANS_BITS: u32 = 8;
+
+/// Zero's value in [`PairMeans`]'s `i16` entries and F2's line buffer of the 8-bit
+/// code. [`LogFine::ZERO`] does not fit an `i16`; any value far enough below every
+/// other one gives the same means: its difference from a value (at least code 1,
+/// 4 quarter codes) is above 4100, past the end of the 8-bit `ln(1 + e^x)` table
+/// (988 entries), so a mean with it is `hi - T[0]` raised to code 1, as with
+/// `LogFine::ZERO`; and two of them give itself. Masked as a gamma address it reads
+/// one of the padding's zeros (checked at compile time below).
+const LOG8_ZERO: i16 = -4096;
+
+const _: () = assert!(
+    (LOG8_ZERO as i32 as usize & (GAMMA_PADDED - 1)) > 4 * ((1 << PAIR_MEANS_BITS) - 1),
+    "zero's gamma address lies in the padding"
+);
+
+/// F2's first pass for the 8-bit log code as a table (P1's F2 was a table-driven
+/// adder too): entry `a << 8 | b` is the half sum `mean(load(a), load(b))` of two
+/// stored codes in quarter codes, [`LOG8_ZERO`] for zero. One read in place of the
+/// half sum's nine operations (max, min, difference, clamp, `T` read, two
+/// additions, the raise to code 1); 128 KiB, built once.
+#[derive(Clone, Debug, PartialEq)]
+struct PairMeans(Box<[i16; 1 << (2 * PAIR_MEANS_BITS)]>);
+
+impl PairMeans {
+    fn build(scale: &LogScale) -> Self {
+        let arith = LogArith::new(scale);
+        let load = |q: u16| LogFine::from_code(q).0;
+        let mut table = Box::new([0i16; 1 << (2 * PAIR_MEANS_BITS)]);
+        for (i, m) in table.iter_mut().enumerate() {
+            let (a, b) = ((i >> PAIR_MEANS_BITS) as u16, (i & ((1 << PAIR_MEANS_BITS) - 1)) as u16);
+            let v = arith.mean(load(a), load(b));
+            *m = if v == LogFine::ZERO.0 { LOG8_ZERO } else { v as i16 };
+        }
+        Self(table)
+    }
+
+    /// The half sum of two stored codes.
+    #[inline(always)]
+    fn mean(&self, a: u16, b: u16) -> i16 {
+        self.0[usize::from(a & 0xFF) << PAIR_MEANS_BITS | usize::from(b & 0xFF)]
+    }
+}
+
+/// F2's second pass on the 8-bit code's line buffer: [`LogArith::mean`] with zero as
+/// [`LOG8_ZERO`] (the same results: see there), widened to `i32`.
+#[inline(always)]
+fn mean_log8(arith: LogArith, a: i16, b: i16) -> i32 {
+    let (a, b) = (i32::from(a), i32::from(b));
+    let (hi, lo) = (a.max(b), a.min(b));
+    (hi + arith.softplus(hi - lo) - arith.ln2).max(hi.min(FINE_PER_CODE))
+}
+
 /// The linear fixed-point code of one bit count (module docs: "The linear code").
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct LinearScale {
@@ -777,25 +838,8 @@ impl VideoBuffer {
                 *a = if first { c } else { *a + c };
             }),
             Memory::Log { scale, codes } => {
-                let scale: &LogScale = scale;
-                let arith = LogArith::new(scale);
-                for_visible(vis, width, |p, n, first, i| {
-                    let c = colors[i].to_array();
-                    let word = &mut codes[p];
-                    if first && n == AREA_DENOMINATOR {
-                        // A whole pixel's first fragment: eq. (3) adds ln 1 = 0, and the
-                        // store of a whole code is the code.
-                        *word = c.map(|c| scale.encode(c));
-                        return;
-                    }
-                    // Eq. (3)'s ln S, `n` in 1..=16.
-                    let ln_s = scale.ln_area[(n as usize - 1) & (AREA_DENOMINATOR as usize - 1)];
-                    for (w, c) in word.iter_mut().zip(c) {
-                        let v = LogFine::from_code(scale.encode(c)).0 + ln_s;
-                        let v = if first { v } else { arith.sum(v, LogFine::from_code(*w).0) };
-                        *w = arith.store(v);
-                    }
-                })
+                let f1 = LogF1::new(scale);
+                accumulate_log(codes, width, vis, f1, |i| colors[i].to_array().map(|c| f1.encode(c)));
             }
             Memory::Linear { scale, codes } => for_visible(vis, width, |p, n, first, i| {
                 let c = colors[i].to_array();
@@ -806,6 +850,19 @@ impl VideoBuffer {
                     word[ch] = v as u16;
                 }
             }),
+        }
+    }
+
+    /// [`Self::accumulate`] of one colour for the whole cell (the background): the
+    /// same values, with the colour encoded once rather than per pixel.
+    pub fn accumulate_flat(&mut self, vis: &Visible, color: Vec3) {
+        match &mut self.memory {
+            Memory::Log { scale, codes } => {
+                let f1 = LogF1::new(scale);
+                let word = color.to_array().map(|c| f1.encode(c));
+                accumulate_log(codes, self.width as usize, vis, f1, |_| word);
+            }
+            Memory::Float(_) | Memory::Linear { .. } => self.accumulate(vis, &[color; 16]),
         }
     }
 
@@ -886,7 +943,12 @@ impl VideoBuffer {
             Memory::Float(accum) => read_out_float(w, h, accum, opts, table, rows, out),
             Memory::Log { scale, codes } => {
                 let table = table.try_into().expect("a padded gamma table");
-                read_out_fine(w, h, codes, opts.filter, LogArith::new(scale), table, rows, out)
+                match &scale.pair_means {
+                    Some(pairs) if opts.filter => {
+                        read_out_log8(w, h, codes, pairs, LogArith::new(scale), table, rows, out)
+                    }
+                    _ => read_out_fine(w, h, codes, opts.filter, LogArith::new(scale), table, rows, out),
+                }
             }
             Memory::Linear { scale, codes } => {
                 let table = table.try_into().expect("a padded gamma table");
@@ -954,6 +1016,82 @@ impl VideoBuffer {
     /// Cells per row and rows of 4x4 cells covering the buffer.
     pub fn cells(&self) -> (usize, usize) {
         (self.width.div_ceil(CELL_SIDE) as usize, self.height.div_ceil(CELL_SIDE) as usize)
+    }
+}
+
+/// F1 of the log code as its loop runs it: the encoder ROM, the `ln S` table and
+/// [`LogArith`] in locals.
+#[derive(Clone, Copy)]
+struct LogF1<'a> {
+    arith: LogArith<'a>,
+    /// The encoder ROM ([`LogScale::encoder_table`]), its address shift and base.
+    encoder: &'a [(u32, u16)],
+    shift: u32,
+    base: u32,
+    /// `round(4 K ln(n / 16))`, index `n - 1`.
+    ln_area: &'a [i32; AREA_DENOMINATOR as usize],
+}
+
+impl<'a> LogF1<'a> {
+    fn new(scale: &'a LogScale) -> Self {
+        Self {
+            arith: LogArith::new(scale),
+            encoder: &scale.encoder,
+            shift: scale.encoder_shift,
+            base: scale.encoder_base,
+            ln_area: &scale.ln_area,
+        }
+    }
+
+    /// [`LogScale::encode`].
+    #[inline(always)]
+    fn encode(self, c: f32) -> u16 {
+        if c >= 1.0 {
+            return self.arith.one as u16;
+        }
+        let bits = c.to_bits();
+        let address = (bits >> self.shift).wrapping_sub(self.base) as usize;
+        match self.encoder.get(address) {
+            Some(&(up_from, q)) => q + u16::from(bits >= up_from),
+            None => 0,
+        }
+    }
+}
+
+/// F1 on the log code for one cell: pixel `i` (`4 y + x`) of the cell brings the
+/// code word `word(i)` (called only for visible pixels). A whole pixel's first
+/// fragment stores its word (eq. 3 adds `ln 1 = 0`, and the store of a whole code is
+/// the code); a partial one adds `ln S` (eq. 3); a later one is summed with the
+/// stored word (eq. 4).
+#[inline(always)]
+fn accumulate_log(codes: &mut [[u16; 3]], width: usize, vis: &Visible, f1: LogF1, word: impl Fn(usize) -> [u16; 3]) {
+    let (px, py) = (vis.px as usize, vis.py as usize);
+    for row in 0..CELL_SIDE as usize {
+        let sets = &vis.sets[4 * row..4 * row + 4];
+        if sets == [0; 4] {
+            continue;
+        }
+        // Pixels beyond the screen's right edge have no visible subpixel.
+        let start = (py + row) * width + px;
+        let words = &mut codes[start..start + (width - px).min(CELL_SIDE as usize)];
+        for (x, w) in words.iter_mut().enumerate() {
+            let (i, set) = (4 * row + x, sets[x]);
+            if set == 0 {
+                continue;
+            }
+            let (n, first) = (set.count_ones(), vis.first >> i & 1 == 1);
+            let q = word(i);
+            if first && n == AREA_DENOMINATOR {
+                *w = q;
+                continue;
+            }
+            let ln_s = f1.ln_area[(n as usize - 1) & (AREA_DENOMINATOR as usize - 1)];
+            for (w, q) in w.iter_mut().zip(q) {
+                let v = LogFine::from_code(q).0 + ln_s;
+                let v = if first { v } else { f1.arith.sum(v, LogFine::from_code(*w).0) };
+                *w = f1.arith.store(v);
+            }
+        }
     }
 }
 
@@ -1164,6 +1302,59 @@ fn read_out_fine(
     }
 }
 
+/// [`read_out_fine`] with F2 for the 8-bit log code: the first pass by the
+/// [`PairMeans`] table into an `i16` line buffer, the second by [`mean_log8`], runs
+/// of [`F2_RUN`] equal to their neighbours copied as there. The same bytes (the tests
+/// compare both with the reference readout).
+#[allow(clippy::too_many_arguments, reason = "the readout's registers, passed as they are")]
+fn read_out_log8(
+    w: usize,
+    h: usize,
+    codes: &[[u16; 3]],
+    pairs: &PairMeans,
+    arith: LogArith,
+    table: &[u8; GAMMA_PADDED],
+    rows: std::ops::Range<usize>,
+    out: &mut [u8],
+) {
+    if w == 0 || rows.is_empty() {
+        return;
+    }
+    assert!(out.len() >= 3 * w * rows.len(), "out holds the rows");
+    let gamma = |v: i32| table[v as usize & (GAMMA_PADDED - 1)];
+    let mut line = vec![[0i16; 3]; w];
+    for (y, out_row) in rows.zip(out.chunks_exact_mut(3 * w)) {
+        let row = &codes[y * w..][..w];
+        let below = &codes[(y + 1).min(h - 1) * w..][..w];
+        // Pass 1: one table read per component (a code's mean with itself is
+        // itself, so flat areas need no case of their own).
+        for ((l, a), b) in line.iter_mut().zip(row).zip(below) {
+            *l = [pairs.mean(a[0], b[0]), pairs.mean(a[1], b[1]), pairs.mean(a[2], b[2])];
+        }
+        // Pass 2: as in `read_out_fine`.
+        let (row_out, last) = out_row.split_last_chunk_mut::<3>().expect("a row holds a pixel");
+        for (k, out_run) in row_out.chunks_mut(3 * F2_RUN).enumerate() {
+            let x0 = k * F2_RUN;
+            let n = out_run.len() / 3;
+            let (a, b) = (&line[x0..x0 + n], &line[x0 + 1..x0 + n + 1]);
+            if a == b {
+                for (px, a) in out_run.chunks_exact_mut(3).zip(a) {
+                    for (o, &v) in px.iter_mut().zip(a) {
+                        *o = gamma(i32::from(v));
+                    }
+                }
+            } else {
+                for ((px, a), b) in out_run.chunks_exact_mut(3).zip(a).zip(b) {
+                    for (ch, o) in px.iter_mut().enumerate() {
+                        *o = gamma(mean_log8(arith, a[ch], b[ch]));
+                    }
+                }
+            }
+        }
+        *last = line[w - 1].map(|v| gamma(i32::from(v)));
+    }
+}
+
 /// The float path's gamma table: linear intensity (`GAMMA_TABLE_SIZE` steps over
 /// 0..1) to 8-bit display code, `255 x^(1/gamma)` rounded.
 pub fn gamma_table(gamma: f32) -> Vec<u8> {
@@ -1251,6 +1442,35 @@ mod tests {
         }
     }
 
+    /// The 8-bit code's F2 with zero as [`LOG8_ZERO`] in `i16` gives the general
+    /// half sums: the pair table on every pair of codes, and the second pass on every
+    /// pair of its operands (zero and every quarter code from code 1 to Q1).
+    #[test]
+    fn log8_f2_matches_log_arith() {
+        let s = LogScale::get(PAIR_MEANS_BITS);
+        let (f, pairs) = (LogArith::new(s), s.pair_means.as_ref().expect("the 8-bit scale has the table"));
+        let narrow = |v: i32| if v == LogFine::ZERO.0 { LOG8_ZERO } else { i16::try_from(v).unwrap() };
+        for a in 0..=s.one() {
+            for b in 0..=s.one() {
+                let want = f.mean(LogFine::from_code(a).0, LogFine::from_code(b).0);
+                assert_eq!(pairs.mean(a, b), narrow(want), "mean of codes {a} and {b}");
+            }
+        }
+        let operands = f2_operands(s, 1);
+        for &a in &operands {
+            for &b in &operands {
+                let want = f.mean(a, b);
+                let got = mean_log8(f, narrow(a), narrow(b));
+                assert_eq!(narrow(got), narrow(want), "mean({a}, {b})");
+                // Zero's gamma address is a zero of the padded table.
+                if want == LogFine::ZERO.0 {
+                    assert_eq!(got, i32::from(LOG8_ZERO));
+                }
+            }
+        }
+        assert!(LogScale::get(PAIR_MEANS_BITS + 1).pair_means.is_none());
+    }
+
     /// The readout as it was first written (P1's arithmetic, one operation at a
     /// time), to compare the fast one with.
     fn reference_read_out(w: usize, h: usize, codes: &[[u16; 3]], filter: bool, mode: VbMode, gamma: f32) -> Vec<u8> {
@@ -1332,6 +1552,44 @@ mod tests {
                         }
                         assert_eq!(banded, expect, "{mode} {w}x{h} filter {filter}, bands of 3 rows");
                     }
+                }
+            }
+        }
+    }
+
+    /// The background's F1 with its colour encoded once gives the per-pixel F1's
+    /// words, in every mode, on random cells and colours (black, white, above one).
+    #[test]
+    fn accumulate_flat_matches_accumulate() {
+        let mut rng = Rng(0xF1A7);
+        let modes = [VbMode::FLOAT, VbMode::LOG8, VbMode::Log { bits: 12 }, VbMode::LINEAR8];
+        for mode in modes {
+            // 10 x 6: cells reaching past the right and bottom edges.
+            let (mut a, mut b) = (VideoBuffer::new(10, 6, mode), VideoBuffer::new(10, 6, mode));
+            for _ in 0..3000 {
+                let (px, py) = ((rng.next() % 3) as u32 * 4, (rng.next() % 2) as u32 * 4);
+                let sets: [u16; 16] = std::array::from_fn(|i| {
+                    let (x, y) = (px + i as u32 % 4, py + i as u32 / 4);
+                    match rng.next() % 4 {
+                        _ if x >= 10 || y >= 6 => 0,
+                        0 => 0,
+                        1 => 0xFFFF,
+                        _ => rng.next() as u16,
+                    }
+                });
+                let color = Vec3::from_array(std::array::from_fn(|_| match rng.next() % 6 {
+                    0 => 0.0,
+                    1 => 1.0,
+                    2 => 1.25,
+                    _ => (rng.next() % 10_000) as f32 / 10_000.0,
+                }));
+                let vis = Visible { px, py, sets, first: rng.next() as u16, covered: false };
+                a.accumulate(&vis, &[color; 16]);
+                b.accumulate_flat(&vis, color);
+            }
+            for y in 0..6 {
+                for x in 0..10 {
+                    assert_eq!(a.linear(x, y), b.linear(x, y), "{mode} pixel ({x}, {y})");
                 }
             }
         }
