@@ -152,6 +152,31 @@ impl<'a> ColorComputers<'a> {
     }
 }
 
+impl ColorComputers<'_> {
+    /// The one colour of a polygon whose every pixel [`Self::shade`] colours alike,
+    /// or `None`: a face with no texture drawn, whose `1/Z` and intensity have
+    /// `A = B = 0` (a face square to the view axis, of even brightness: `rombm`'s
+    /// rhombi, `many`'s triangles). Its `Z`, intensity and fog are then the same at
+    /// every pixel (`Q + 0 dx + 0 dy` is `Q`), and so is its colour; it is computed by
+    /// `shade` itself, at one pixel, so it is the very value every pixel would get
+    /// (zero's sign aside, which no VB mode keeps apart).
+    pub fn flat_color(&self, poly: &FramePolygon) -> Option<Vec3> {
+        let drawn_texture = poly.texture.as_ref().is_some_and(|t| self.textures.get(t.map).is_some());
+        let still = |f: &crate::frame::FracLin| f.a == 0.0 && f.b == 0.0;
+        if drawn_texture || !still(&poly.inv_z) || !still(&poly.intensity) {
+            return None;
+        }
+        // Pixel (1, 1) of the first cell, alone.
+        const Q_PIXEL: usize = 5;
+        let mut sets = [0u16; 16];
+        sets[Q_PIXEL] = super::spp::FULL;
+        let vis = Visible { px: 0, py: 0, sets, first: 0, covered: false };
+        let mut out = [Vec3::ZERO; 16];
+        self.shade::<false>(poly, &vis, &mut out, &mut Counters::default());
+        Some(out[Q_PIXEL])
+    }
+}
+
 /// `dx` of pixel `i` (`4 y + x`) of a cell from Q, its pixel (1, 1).
 const STEP_X: [f32; 16] = [-1.0, 0.0, 1.0, 2.0, -1.0, 0.0, 1.0, 2.0, -1.0, 0.0, 1.0, 2.0, -1.0, 0.0, 1.0, 2.0];
 
@@ -183,6 +208,70 @@ mod tests {
         let c = c0.to_array();
         let fog = cc.fog_color.to_array();
         Vec3::from_array(std::array::from_fn(|k| c[k] * intensity * f + fog[k] * (1.0 - f)))
+    }
+
+    /// A polygon with `A = B = 0` in `1/Z` and intensity and no texture drawn has
+    /// one colour, which `shade` gives every pixel of every cell, fog or none; any
+    /// other polygon has none.
+    #[test]
+    fn flat_color_is_every_pixels_colour() {
+        let maps = TextureMaps::new(vec![builtin("grass").unwrap()]);
+        let mut h = 0x2545_F491u32;
+        let mut next = || {
+            h ^= h << 13;
+            h ^= h >> 17;
+            h ^= h << 5;
+            h as f32 / u32::MAX as f32
+        };
+        for round in 0..2000 {
+            let zero = |k: u32| if k % 2 == 0 { 0.0 } else { -0.0 };
+            let still = |c: f32| FracLin { a: zero(round), b: zero(round / 2), c };
+            let moving = round % 7 == 6;
+            let inv_z = if moving { FracLin { a: 1e-6, b: 0.0, c: 0.05 } } else { still(next() * 0.1 + 1e-4) };
+            // Brightness from none to full, zero included.
+            let intensity = still(if round % 11 == 0 { 0.0 } else { next() * inv_z.c });
+            // Map 1 is missing: the face keeps its colour.
+            let texture = (round % 5 == 4).then(|| PolyTexture {
+                map: u32::from(round % 10 == 4),
+                u: still(next()),
+                v: still(next()),
+                par: 1.0,
+                color1: Vec3::ONE,
+                color2: Vec3::ZERO,
+            });
+            let poly = FramePolygon {
+                vertices: 0..0,
+                edges: 0..0,
+                kind: PrimitiveKind::Face,
+                material: 0,
+                source: (0, 0),
+                color: Vec3::new(next(), next(), next()),
+                inv_z,
+                intensity,
+                texture,
+                transparency: 0,
+            };
+            let cc = ColorComputers {
+                fog_color: Vec3::new(next(), next(), next()),
+                inv_visibility: if round % 3 == 0 { 0.0 } else { next() * 1e-2 },
+                footprint_scale: FOOTPRINT_FACTOR * 1e-3,
+                textures: &maps,
+            };
+            let flat = cc.flat_color(&poly);
+            let drawn = poly.texture.as_ref().is_some_and(|t| t.map == 0);
+            assert_eq!(flat.is_some(), !moving && !drawn, "round {round}");
+            let Some(flat) = flat else { continue };
+            for _ in 0..8 {
+                let (px, py) = (4 * (next() * 480.0) as u32, 4 * (next() * 270.0) as u32);
+                let vis = Visible { px, py, sets: [super::super::spp::FULL; 16], first: 0, covered: false };
+                let mut out = [Vec3::splat(-7.0); 16];
+                cc.shade::<false>(&poly, &vis, &mut out, &mut Counters::new(9));
+                for (i, c) in out.iter().enumerate() {
+                    // `==`: zero's sign may differ, and no VB mode tells them apart.
+                    assert!(c.to_array() == flat.to_array(), "round {round}, cell ({px}, {py}), pixel {i}");
+                }
+            }
+        }
     }
 
     #[test]

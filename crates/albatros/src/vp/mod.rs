@@ -135,9 +135,29 @@ impl VideoProcessor {
         let mut colors = [Vec3::ZERO; 16];
         let mut inner = Counters::new(self.gq.root_level);
         let vb = &mut self.vb;
+        // The last polygon seen and its one colour, if it has one
+        // ([`ColorComputers::flat_color`]).
+        let mut flat: Option<(usize, Option<Vec3>)> = None;
         Self::run::<STATS>(&mut self.gq, &mut self.spp, &mut self.counters, frame, &mut |poly, vis| match poly {
             Some(p) => {
                 let poly = &frame.polygons[p];
+                // A polygon of one colour goes to the VB as the background does,
+                // with no work per pixel in the CC. (Not when counting: the counters
+                // count the CC's pixels as the machine colours them.)
+                if !STATS {
+                    let color = match flat {
+                        Some((q, color)) if q == p => color,
+                        _ => {
+                            let color = cc.flat_color(poly);
+                            flat = Some((p, color));
+                            color
+                        }
+                    };
+                    if let Some(color) = color {
+                        vb.accumulate_flat(vis, color);
+                        return;
+                    }
+                }
                 cc.shade::<STATS>(poly, vis, &mut colors, &mut inner);
                 // The VB's writes are counted once per frame (`run`).
                 vb.accumulate(vis, &colors);
