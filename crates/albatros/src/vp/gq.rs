@@ -78,41 +78,115 @@ impl MaskLevels {
 }
 
 /// One level's mask memory: a bit per cell, "wholly covered by polygons already drawn".
+///
+/// Bit layout: the cells of level `k` form a `2^k x 2^k` square (the root cell's
+/// children, grandchildren, ...), stored in Z order (Morton order): cell `(x, y)` is
+/// bit `z(x, y)` of the `u64` words, `z` interleaving the bits of `x` (even bit
+/// positions) and `y` (odd ones) ([`morton`]). The four children of a cell `z` are
+/// then bits `4 z .. 4 z + 3` of the next level, child `c = dx + 2 dy` at `4 z + c`:
+/// one nibble, never split across words, read and written at once (P1's GQ reads the
+/// four children's mask bits together), and a cell's parent is `z >> 2`.
+///
+/// Cells of the square wholly off the screen are set when the memory is cleared, so
+/// they always read as covered (pre-masked), like the cells of other VPs of a matrix
+/// at the tile level ([`Share`]).
 #[derive(Clone, Debug, Default)]
 pub struct MaskMemory {
-    /// Cells per row (only the cells that touch the screen are stored).
+    /// Cells per row that touch the screen.
     pub stride: usize,
-    /// Rows.
+    /// Rows of cells that touch the screen.
     pub rows: usize,
     bits: Vec<u64>,
+    /// The words as a frame starts: the pre-masked cells set.
+    cleared: Vec<u64>,
+}
+
+/// The Z-order (Morton) index of cell `(x, y)`: the bits of `x` at the even
+/// positions, those of `y` at the odd ones (`x, y < 2^16`).
+#[inline]
+pub fn morton(x: u32, y: u32) -> usize {
+    /// The 16 low bits of `v` spread to the even bit positions.
+    #[inline(always)]
+    fn spread(v: u32) -> u64 {
+        let mut v = u64::from(v & 0xFFFF);
+        v = (v | v << 8) & 0x00FF_00FF;
+        v = (v | v << 4) & 0x0F0F_0F0F;
+        v = (v | v << 2) & 0x3333_3333;
+        v = (v | v << 1) & 0x5555_5555;
+        v
+    }
+    (spread(x) | spread(y) << 1) as usize
 }
 
 impl MaskMemory {
-    fn new(stride: usize, rows: usize) -> Self {
-        Self { stride, rows, bits: vec![0; (stride * rows).div_ceil(64)] }
+    /// The memory of level `level` (a `2^level` square of cells) for a screen of
+    /// `stride x rows` cells: every cell off the screen pre-masked.
+    fn new(level: u32, stride: usize, rows: usize) -> Self {
+        let side = 1usize << level;
+        let words = (side * side).div_ceil(64);
+        let mut m = Self { stride, rows, bits: vec![0; words], cleared: Vec::new() };
+        for cy in 0..side {
+            for cx in 0..side {
+                if cx >= stride || cy >= rows {
+                    m.set(cx, cy);
+                }
+            }
+        }
+        m.cleared = m.bits.clone();
+        m
     }
 
-    /// Whether cell `(cx, cy)` is covered; cells beyond the stored ones (wholly off the
-    /// screen) count as covered.
+    /// Whether cell `(cx, cy)` (inside the level's square) is covered; cells wholly
+    /// off the screen are.
     #[inline]
     pub fn get(&self, cx: usize, cy: usize) -> bool {
-        if cx >= self.stride || cy >= self.rows {
-            return true;
-        }
-        let i = cy * self.stride + cx;
-        self.bits[i >> 6] >> (i & 63) & 1 == 1
+        self.get_z(morton(cx as u32, cy as u32))
+    }
+
+    /// Whether the cell of Z-order index `z` is covered.
+    #[inline]
+    fn get_z(&self, z: usize) -> bool {
+        self.bits[z >> 6] >> (z & 63) & 1 == 1
     }
 
     #[inline]
     fn set(&mut self, cx: usize, cy: usize) {
-        if cx < self.stride && cy < self.rows {
-            let i = cy * self.stride + cx;
-            self.bits[i >> 6] |= 1 << (i & 63);
-        }
+        self.set_z(morton(cx as u32, cy as u32));
     }
 
+    #[inline]
+    fn set_z(&mut self, z: usize) {
+        self.bits[z >> 6] |= 1 << (z & 63);
+    }
+
+    /// The mask bits of the four children of the parent cell `z` (of the level
+    /// above), child `c` at bit `c`.
+    #[inline]
+    fn children(&self, z: usize) -> u8 {
+        let first = 4 * z;
+        (self.bits[first >> 6] >> (first & 63)) as u8 & 0xF
+    }
+
+    /// Sets the children `nibble` (bit `c` for child `c`) of the parent cell `z`.
+    #[inline]
+    fn set_children(&mut self, z: usize, nibble: u8) {
+        let first = 4 * z;
+        self.bits[first >> 6] |= u64::from(nibble & 0xF) << (first & 63);
+    }
+
+    /// Back to the state a frame starts from.
     fn clear(&mut self) {
-        self.bits.fill(0);
+        self.bits.copy_from_slice(&self.cleared);
+    }
+
+    /// Makes the present bits the state a frame starts from.
+    fn keep_as_cleared(&mut self) {
+        self.cleared.copy_from_slice(&self.bits);
+    }
+
+    /// Forgets every pre-mask but the off-screen cells': the state after [`Self::new`].
+    fn reset_cleared(&mut self, level: u32) {
+        *self = Self::new(level, self.stride, self.rows);
     }
 }
 
@@ -204,6 +278,8 @@ pub struct CellProcessors {
     /// compiled out; with counting on and `None` it costs one branch per split cell.
     pub recorder: Option<Vec<CellRecord>>,
     memories: Vec<MaskMemory>,
+    /// The share the memories' cleared states were made for.
+    cleared_share: Share,
     scratch: Vec<Vec<ActiveEdge>>,
     codes: Vec<Vec<EdgeSplit>>,
 }
@@ -258,7 +334,7 @@ impl CellProcessors {
         let memories = (0..=root_level)
             .map(|k| {
                 let side = 4u32 << (root_level - k);
-                MaskMemory::new(width.div_ceil(side) as usize, height.div_ceil(side) as usize)
+                MaskMemory::new(k, width.div_ceil(side) as usize, height.div_ceil(side) as usize)
             })
             .collect();
         Self {
@@ -270,17 +346,29 @@ impl CellProcessors {
             hierarchical: false,
             recorder: None,
             memories,
+            cleared_share: Share::WHOLE,
             scratch: vec![Vec::new(); root_level as usize + 1],
             codes: vec![Vec::new(); root_level as usize + 1],
         }
     }
 
-    /// Clears every mask memory for a new frame.
+    /// Clears every mask memory for a new frame: the cells off the screen, and those
+    /// of other VPs of a matrix at the share's tile level, are pre-masked.
     pub fn clear(&mut self) {
+        if self.cleared_share != self.share {
+            self.pre_mask_share();
+        }
         for m in &mut self.memories {
             m.clear();
         }
-        // Pre-mask the cells of other VPs at the share's tile level.
+    }
+
+    /// Makes the memories' cleared states for `self.share`: the cells of other VPs
+    /// set at the share's tile level.
+    fn pre_mask_share(&mut self) {
+        for (k, m) in self.memories.iter_mut().enumerate() {
+            m.reset_cleared(k as u32);
+        }
         let share = self.share;
         if share.p * share.q > 1 && share.tile >= 4 && share.tile <= self.side(0) {
             let level = self.root_level + 2 - share.tile.trailing_zeros();
@@ -292,7 +380,9 @@ impl CellProcessors {
                     }
                 }
             }
+            m.keep_as_cleared();
         }
+        self.cleared_share = share;
     }
 
     /// Greene's hierarchical coverage: the last-level cell `(cx, cy)` is now wholly
@@ -300,21 +390,16 @@ impl CellProcessors {
     /// are then all marked, as far up as the levels in use reach. Sound: a covered
     /// cell hides everything behind it, so dropping it early changes no subpixel.
     pub fn mark_covered(&mut self, cx: u32, cy: u32) {
-        let (mut x, mut y) = (cx, cy);
+        let mut z = morton(cx, cy);
         let mut k = self.root_level;
         while k >= 1 && self.masks.has(k) {
-            self.memories[k as usize].set(x as usize, y as usize);
-            let (px, py) = (x & !1, y & !1);
-            let m = &self.memories[k as usize];
-            let all = m.get(px as usize, py as usize)
-                && m.get(px as usize + 1, py as usize)
-                && m.get(px as usize, py as usize + 1)
-                && m.get(px as usize + 1, py as usize + 1);
-            if !all {
+            let m = &mut self.memories[k as usize];
+            m.set_z(z);
+            // The four siblings are the nibble of the parent `z >> 2`.
+            if m.children(z >> 2) != 0xF {
                 break;
             }
-            x >>= 1;
-            y >>= 1;
+            z >>= 2;
             k -= 1;
         }
     }
@@ -356,10 +441,11 @@ impl CellProcessors {
         }
         // A polygon whose starting cell lies in a covered cell of any masking level
         // is dropped whole.
+        let start_z = morton(start.x, start.y);
         for k in 1..=start.level {
             if self.masks.has(k) {
-                let shift = start.level - k;
-                if self.memories[k as usize].get((start.x >> shift) as usize, (start.y >> shift) as usize) {
+                // The ancestor of level `k`: two Z-order bits per level up.
+                if self.memories[k as usize].get_z(start_z >> (2 * (start.level - k))) {
                     if STATS {
                         counters.levels[start.level as usize].polygons_masked += 1;
                         if let Some(rec) = &mut self.recorder {
@@ -450,13 +536,9 @@ impl CellProcessors {
         // The mask memory of the children's level.
         // Bits are only ever set on levels in use; cells wholly off the screen always
         // read as covered (pre-masked), whatever the mode.
-        let mut m = 0u8;
         let mem_on = self.masks.has(child_level);
-        let memory = &self.memories[child_level as usize];
-        let (cx0, cy0) = (cell.x as usize * 2, cell.y as usize * 2);
-        for c in 0..4usize {
-            m |= u8::from(memory.get(cx0 + (c & 1), cy0 + (c >> 1))) << c;
-        }
+        let cell_z = morton(cell.x, cell.y);
+        let m = self.memories[child_level as usize].children(cell_z);
         let cri = !m & cri_all & 0xF;
         let ci = !m & ci_all & 0xF;
         if STATS {
@@ -472,13 +554,7 @@ impl CellProcessors {
             }
         }
         if poly.opaque && mem_on {
-            let memory = &mut self.memories[child_level as usize];
-            let mut inside = ci;
-            while inside != 0 {
-                let c = inside.trailing_zeros() as usize;
-                inside &= inside - 1;
-                memory.set(cx0 + (c & 1), cy0 + (c >> 1));
-            }
+            self.memories[child_level as usize].set_children(cell_z, ci);
         }
         let mut todo = cri;
         while todo != 0 {
@@ -529,5 +605,52 @@ fn record_children(rec: &mut Vec<CellRecord>, cell: Cell, cri_all: u8, m: u8, ci
         };
         let child = Cell { level: cell.level + 1, x: cell.x * 2 + (c & 1), y: cell.y * 2 + (c >> 1) };
         rec.push((child, kind));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Z order: a bijection of the square, a cell's four children one nibble of the
+    /// next level at its index times four, its parent at its index over four.
+    #[test]
+    fn morton_order_puts_siblings_in_a_nibble() {
+        for level in 0..=6u32 {
+            let side = 1u32 << level;
+            let mut seen = vec![false; (side * side) as usize];
+            for y in 0..side {
+                for x in 0..side {
+                    let z = morton(x, y);
+                    assert!(!seen[z], "level {level}: ({x}, {y}) shares index {z}");
+                    seen[z] = true;
+                    assert_eq!(z >> 2, morton(x >> 1, y >> 1));
+                    assert_eq!(z & 3, (x & 1 | (y & 1) << 1) as usize);
+                }
+            }
+        }
+        assert_eq!(morton(0xFFFF, 0xFFFF), u32::MAX as usize);
+    }
+
+    /// The memory's cells, one by one and as nibbles of children, and its pre-masks:
+    /// the cells off the screen read covered, and survive a clear.
+    #[test]
+    fn mask_memory_cells_and_children() {
+        // Level 4: a 16 x 16 square, of which 11 x 7 cells touch the screen.
+        let mut m = MaskMemory::new(4, 11, 7);
+        for y in 0..16 {
+            for x in 0..16 {
+                assert_eq!(m.get(x, y), x >= 11 || y >= 7, "({x}, {y})");
+            }
+        }
+        m.set(3, 5);
+        assert!(m.get(3, 5));
+        assert_eq!(m.children(morton(1, 2)), 1 << 3);
+        m.set_children(morton(0, 0), 0b0110);
+        assert!(!m.get(0, 0) && m.get(1, 0) && m.get(0, 1) && !m.get(1, 1));
+        m.clear();
+        assert!(!m.get(3, 5) && !m.get(1, 0) && m.get(11, 0) && m.get(0, 7));
+        // Children (10, 6), (11, 6), (10, 7), (11, 7): only the first is on the screen.
+        assert_eq!(m.children(morton(5, 3)), 0b1110);
     }
 }
