@@ -404,6 +404,38 @@ impl CellProcessors {
         }
     }
 
+    /// [`Self::mark_covered`] of many last-level cells at once, given by their
+    /// Z-order indices ([`morton`]; `cells` is used as scratch and left empty): level
+    /// by level, all the cells of a level marked, then each parent checked once. The
+    /// same marks as marking the cells one by one, in any order: a parent is marked
+    /// when its four children are, and whichever child came last saw them all. It
+    /// saves the walks up: a polygon covering a large area marks its cells IN on every
+    /// level as it descends (P1's rule), so a walk from each of its last-level cells
+    /// would climb through those marks again and again (7 levels on average on
+    /// `rombm`, against 1.33 parents per cell here). Cells in ascending Z order (the
+    /// descent's own order) have their parents' repeats side by side, checked once.
+    pub fn mark_covered_cells(&mut self, cells: &mut Vec<usize>) {
+        let mut k = self.root_level;
+        while k >= 1 && self.masks.has(k) && !cells.is_empty() {
+            let m = &mut self.memories[k as usize];
+            for &z in cells.iter() {
+                m.set_z(z);
+            }
+            let (mut kept, mut last) = (0, usize::MAX);
+            for i in 0..cells.len() {
+                let parent = cells[i] >> 2;
+                if parent != last && m.children(parent) == 0xF {
+                    cells[kept] = parent;
+                    kept += 1;
+                }
+                last = parent;
+            }
+            cells.truncate(kept);
+            k -= 1;
+        }
+        cells.clear();
+    }
+
     /// The mask memory of level `k` (for pictures and tests).
     pub fn memory(&self, k: u32) -> &MaskMemory {
         &self.memories[k as usize]
@@ -652,5 +684,39 @@ mod tests {
         assert!(!m.get(3, 5) && !m.get(1, 0) && m.get(11, 0) && m.get(0, 7));
         // Children (10, 6), (11, 6), (10, 7), (11, 7): only the first is on the screen.
         assert_eq!(m.children(morton(5, 3)), 0b1110);
+    }
+
+    proptest::proptest! {
+        /// Marking covered cells all at once leaves the mask memories as marking
+        /// them one by one does, in any order, over any earlier marks (IN cells of
+        /// every level, cells marked before) and with any levels in use.
+        #[test]
+        fn marking_cells_at_once_is_marking_them_one_by_one(
+            earlier in proptest::collection::vec((1u32..=5, 0u32..32, 0u32..32), 0..60),
+            cells in proptest::collection::vec((0u32..32, 0u32..32), 0..200),
+            sort in proptest::bool::ANY,
+            lowest_mask in 1u32..=5,
+        ) {
+            // A 128 x 128 screen: root level 5, 32 x 32 last-level cells.
+            let mut one = CellProcessors::new(128, 128, MaskLevels::range(lowest_mask, 5));
+            one.clear();
+            for &(k, x, y) in &earlier {
+                let side = 1u32 << k;
+                one.memories[k as usize].set((x % side) as usize, (y % side) as usize);
+            }
+            let mut all = one.clone();
+            for &(x, y) in &cells {
+                one.mark_covered(x, y);
+            }
+            let mut z: Vec<usize> = cells.iter().map(|&(x, y)| morton(x, y)).collect();
+            if sort {
+                z.sort_unstable();
+            }
+            all.mark_covered_cells(&mut z);
+            proptest::prop_assert!(z.is_empty());
+            for (k, (a, b)) in one.memories.iter().zip(&all.memories).enumerate() {
+                proptest::prop_assert_eq!(&a.bits, &b.bits, "level {}", k);
+            }
+        }
     }
 }

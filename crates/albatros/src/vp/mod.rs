@@ -251,7 +251,8 @@ impl VideoProcessor {
         // A second counter set for the SPP stage (the GQ holds the first).
         let mut inner = Counters::new(gq.root_level);
         let hierarchical = gq.hierarchical;
-        let mut covered_cells: Vec<(u32, u32)> = Vec::new();
+        // The last-level cells a polygon covers wholly, in Z order.
+        let mut covered_cells: Vec<usize> = Vec::new();
         for (index, poly) in frame.polygons.iter().enumerate() {
             let edges = frame.edges_of(poly);
             let bbox = bbox(frame.vertices_of(poly), frame.width, frame.height);
@@ -262,16 +263,14 @@ impl VideoProcessor {
             gq.descend::<STATS>(&gp, counters, &mut |frag| {
                 let vis = spp.process::<STATS>(&frag, edges, poly.transparency, &mut inner);
                 if hierarchical && vis.covered {
-                    covered_cells.push((vis.px / spp::CELL_SIDE, vis.py / spp::CELL_SIDE));
+                    covered_cells.push(gq::morton(vis.px / spp::CELL_SIDE, vis.py / spp::CELL_SIDE));
                 }
                 if vis.sets.iter().any(|&s| s != 0) {
                     sink(Some(index), &vis);
                 }
             });
             // Cells this polygon finished covering are marked for the next ones.
-            for (cx, cy) in covered_cells.drain(..) {
-                gq.mark_covered(cx, cy);
-            }
+            gq.mark_covered_cells(&mut covered_cells);
         }
         // The background: the last fragment of every pixel.
         let (mut background_subpixels, mut background_firsts) = (0u64, 0u64);
