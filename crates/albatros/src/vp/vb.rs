@@ -41,7 +41,8 @@
 //!
 //! # The log code (P1 eq. 3-4)
 //! A VMEM word holds three `b`-bit codes (`b` = [`VbMode::Log`]`::bits`, 8 by
-//! default: P1's 24-bit colour word). Layout of one code `q`, unsigned:
+//! default: P1's 24-bit colour word, stored as one `u32` per pixel, [`Word8`]; wider
+//! codes as three `u16`). Layout of one code `q`, unsigned:
 //! - `q = 0`: zero (black). The logarithm of zero does not exist, so zero has a code
 //!   of its own, below every value;
 //! - `q = 1 ..= Q1`, `Q1 = 2^b - 1`: the linear value `c = exp(alpha (q - Q1))`, i.e.
@@ -117,7 +118,7 @@ use std::sync::OnceLock;
 use glam::Vec3;
 
 use super::gq::Share;
-use super::spp::{Visible, CELL_SIDE};
+use super::spp::{Visible, CELL_SIDE, FULL};
 
 /// Entries of the float path's gamma table (linear input resolution).
 pub const GAMMA_TABLE_SIZE: usize = 4096;
@@ -679,8 +680,19 @@ impl PairMeans {
 
     /// The half sum of two stored codes.
     #[inline(always)]
+    #[cfg(test)]
     fn mean(&self, a: u16, b: u16) -> i16 {
         self.0[usize::from(a & 0xFF) << PAIR_MEANS_BITS | usize::from(b & 0xFF)]
+    }
+
+    /// The half sums of two VMEM words, component by component, as a [`Line8`].
+    #[inline(always)]
+    fn mean_words(&self, a: Word8, b: Word8) -> Line8 {
+        let at = |ch: u32| {
+            let (a, b) = ((a >> (WORD8_SHIFT * ch)) & 0xFF, (b >> (WORD8_SHIFT * ch)) & 0xFF);
+            self.0[(a << PAIR_MEANS_BITS | b) as usize]
+        };
+        [at(0), at(1), at(2), 0]
     }
 }
 
@@ -780,8 +792,10 @@ impl Default for Readout {
 enum Memory {
     /// Linear `f32` RGB.
     Float(Vec<Vec3>),
-    /// Three log codes per pixel.
+    /// Three log codes per pixel (9 to 12 bits).
     Log { scale: &'static LogScale, codes: Vec<[u16; 3]> },
+    /// P1's VMEM: three 8-bit log codes per pixel in one 24-bit word ([`Word8`]).
+    Log8 { scale: &'static LogScale, codes: Vec<u32> },
     /// Three linear codes per pixel.
     Linear { scale: LinearScale, codes: Vec<[u16; 3]> },
 }
@@ -803,6 +817,9 @@ impl VideoBuffer {
         let n = width as usize * height as usize;
         let memory = match mode.clamped() {
             VbMode::Float => Memory::Float(vec![Vec3::ZERO; n]),
+            VbMode::Log { bits: PAIR_MEANS_BITS } => {
+                Memory::Log8 { scale: LogScale::get(PAIR_MEANS_BITS), codes: vec![0; n] }
+            }
             VbMode::Log { bits } => Memory::Log { scale: LogScale::get(bits), codes: vec![[0; 3]; n] },
             VbMode::Linear { bits } => Memory::Linear { scale: LinearScale::new(bits), codes: vec![[0; 3]; n] },
         };
@@ -813,7 +830,7 @@ impl VideoBuffer {
     pub fn mode(&self) -> VbMode {
         match &self.memory {
             Memory::Float(_) => VbMode::Float,
-            Memory::Log { scale, .. } => VbMode::Log { bits: scale.bits },
+            Memory::Log { scale, .. } | Memory::Log8 { scale, .. } => VbMode::Log { bits: scale.bits },
             Memory::Linear { scale, .. } => VbMode::Linear { bits: (scale.max + 1).trailing_zeros() },
         }
     }
@@ -823,6 +840,7 @@ impl VideoBuffer {
         match &mut self.memory {
             Memory::Float(a) => a.fill(Vec3::ZERO),
             Memory::Log { codes, .. } | Memory::Linear { codes, .. } => codes.fill([0; 3]),
+            Memory::Log8 { codes, .. } => codes.fill(0),
         }
     }
 
@@ -841,6 +859,10 @@ impl VideoBuffer {
                 let f1 = LogF1::new(scale);
                 accumulate_log(codes, width, vis, f1, |i| colors[i].to_array().map(|c| f1.encode(c)));
             }
+            Memory::Log8 { scale, codes } => {
+                let f1 = LogF1::new(scale);
+                accumulate_log(codes, width, vis, f1, |i| colors[i].to_array().map(|c| f1.encode(c)));
+            }
             Memory::Linear { scale, codes } => for_visible(vis, width, |p, n, first, i| {
                 let c = colors[i].to_array();
                 let word = &mut codes[p];
@@ -856,11 +878,17 @@ impl VideoBuffer {
     /// [`Self::accumulate`] of one colour for the whole cell (the background): the
     /// same values, with the colour encoded once rather than per pixel.
     pub fn accumulate_flat(&mut self, vis: &Visible, color: Vec3) {
+        let width = self.width as usize;
         match &mut self.memory {
             Memory::Log { scale, codes } => {
                 let f1 = LogF1::new(scale);
                 let word = color.to_array().map(|c| f1.encode(c));
-                accumulate_log(codes, self.width as usize, vis, f1, |_| word);
+                accumulate_log_flat(codes, width, vis, f1, word);
+            }
+            Memory::Log8 { scale, codes } => {
+                let f1 = LogF1::new(scale);
+                let word = color.to_array().map(|c| f1.encode(c));
+                accumulate_log_flat(codes, width, vis, f1, word);
             }
             Memory::Float(_) | Memory::Linear { .. } => self.accumulate(vis, &[color; 16]),
         }
@@ -872,6 +900,7 @@ impl VideoBuffer {
         match &self.memory {
             Memory::Float(accum) => accum[p],
             Memory::Log { scale, codes } => Vec3::from_array(codes[p].map(|q| scale.value(q) as f32)),
+            Memory::Log8 { scale, codes } => Vec3::from_array(codes[p].unpack().map(|q| scale.value(q) as f32)),
             Memory::Linear { scale, codes } => Vec3::from_array(codes[p].map(|q| f32::from(q) / scale.max as f32)),
         }
     }
@@ -931,7 +960,7 @@ impl VideoBuffer {
     fn gamma_table(&self, opts: &Readout) -> Vec<u8> {
         match &self.memory {
             Memory::Float(_) => gamma_table(opts.gamma),
-            Memory::Log { scale, .. } => padded(scale.gamma_table(opts.gamma)),
+            Memory::Log { scale, .. } | Memory::Log8 { scale, .. } => padded(scale.gamma_table(opts.gamma)),
             Memory::Linear { scale, .. } => padded(scale.gamma_table(opts.gamma)),
         }
     }
@@ -943,12 +972,12 @@ impl VideoBuffer {
             Memory::Float(accum) => read_out_float(w, h, accum, opts, table, rows, out),
             Memory::Log { scale, codes } => {
                 let table = table.try_into().expect("a padded gamma table");
-                match &scale.pair_means {
-                    Some(pairs) if opts.filter => {
-                        read_out_log8(w, h, codes, pairs, LogArith::new(scale), table, rows, out)
-                    }
-                    _ => read_out_fine(w, h, codes, opts.filter, LogArith::new(scale), table, rows, out),
-                }
+                read_out_fine(w, h, codes, opts.filter, LogArith::new(scale), table, rows, out)
+            }
+            Memory::Log8 { scale, codes } => {
+                let table = table.try_into().expect("a padded gamma table");
+                let pairs = scale.pair_means.as_ref().expect("the 8-bit scale has the pair table");
+                read_out_log8(w, h, codes, opts.filter, pairs, LogArith::new(scale), table, rows, out)
             }
             Memory::Linear { scale, codes } => {
                 let table = table.try_into().expect("a padded gamma table");
@@ -986,7 +1015,17 @@ impl VideoBuffer {
                     .iter()
                     .map(|(o, share)| match &o.memory {
                         Memory::Log { codes: src, .. } | Memory::Linear { codes: src, .. } => (src.as_slice(), *share),
-                        Memory::Float(_) => unreachable!("the modes were compared above"),
+                        _ => unreachable!("the modes were compared above"),
+                    })
+                    .collect();
+                copy_shares_parallel(dst, &srcs, w);
+            }
+            Memory::Log8 { codes: dst, .. } => {
+                let srcs: Vec<(&[u32], &Share)> = others
+                    .iter()
+                    .map(|(o, share)| match &o.memory {
+                        Memory::Log8 { codes: src, .. } => (src.as_slice(), *share),
+                        _ => unreachable!("the modes were compared above"),
                     })
                     .collect();
                 copy_shares_parallel(dst, &srcs, w);
@@ -1009,6 +1048,7 @@ impl VideoBuffer {
             | (Memory::Linear { codes: dst, .. }, Memory::Linear { codes: src, .. }) => {
                 copy_owned(dst, src, width, &owns)
             }
+            (Memory::Log8 { codes: dst, .. }, Memory::Log8 { codes: src, .. }) => copy_owned(dst, src, width, &owns),
             _ => unreachable!("the modes were compared above"),
         }
     }
@@ -1064,7 +1104,13 @@ impl<'a> LogF1<'a> {
 /// the code); a partial one adds `ln S` (eq. 3); a later one is summed with the
 /// stored word (eq. 4).
 #[inline(always)]
-fn accumulate_log(codes: &mut [[u16; 3]], width: usize, vis: &Visible, f1: LogF1, word: impl Fn(usize) -> [u16; 3]) {
+fn accumulate_log<W: LogWord>(
+    codes: &mut [W],
+    width: usize,
+    vis: &Visible,
+    f1: LogF1,
+    word: impl Fn(usize) -> [u16; 3],
+) {
     let (px, py) = (vis.px as usize, vis.py as usize);
     for row in 0..CELL_SIDE as usize {
         let sets = &vis.sets[4 * row..4 * row + 4];
@@ -1082,16 +1128,75 @@ fn accumulate_log(codes: &mut [[u16; 3]], width: usize, vis: &Visible, f1: LogF1
             let (n, first) = (set.count_ones(), vis.first >> i & 1 == 1);
             let q = word(i);
             if first && n == AREA_DENOMINATOR {
-                *w = q;
+                *w = W::pack(q);
                 continue;
             }
             let ln_s = f1.ln_area[(n as usize - 1) & (AREA_DENOMINATOR as usize - 1)];
-            for (w, q) in w.iter_mut().zip(q) {
+            let mut stored = w.unpack();
+            for (s, q) in stored.iter_mut().zip(q) {
                 let v = LogFine::from_code(q).0 + ln_s;
-                let v = if first { v } else { f1.arith.sum(v, LogFine::from_code(*w).0) };
-                *w = f1.arith.store(v);
+                let v = if first { v } else { f1.arith.sum(v, LogFine::from_code(*s).0) };
+                *s = f1.arith.store(v);
             }
+            *w = W::pack(stored);
         }
+    }
+}
+
+/// [`accumulate_log`] of one code word for the whole cell. A whole cell's first
+/// fragments (a large polygon's inside, the open sky) fill its rows with the word.
+/// (Its 16 pixels are then on the screen: pixels off it have no visible subpixel.)
+#[inline(always)]
+fn accumulate_log_flat<W: LogWord>(codes: &mut [W], width: usize, vis: &Visible, f1: LogF1, word: [u16; 3]) {
+    if vis.first == FULL && vis.sets == [FULL; 16] {
+        let (px, py, packed) = (vis.px as usize, vis.py as usize, W::pack(word));
+        for y in py..py + CELL_SIDE as usize {
+            codes[y * width + px..][..CELL_SIDE as usize].fill(packed);
+        }
+        return;
+    }
+    accumulate_log(codes, width, vis, f1, |_| word);
+}
+
+/// A VMEM word of three log codes.
+trait LogWord: Copy {
+    /// The word of three codes.
+    fn pack(codes: [u16; 3]) -> Self;
+    /// Its three codes.
+    fn unpack(self) -> [u16; 3];
+}
+
+impl LogWord for [u16; 3] {
+    #[inline(always)]
+    fn pack(codes: [u16; 3]) -> Self {
+        codes
+    }
+
+    #[inline(always)]
+    fn unpack(self) -> [u16; 3] {
+        self
+    }
+}
+
+/// P1's 24-bit VMEM word of the 8-bit log code, in a `u32`: bits `[7:0]` R, `[15:8]`
+/// G, `[23:16]` B, `[31:24]` zero. One word per pixel compares, copies and fills
+/// at once (the readout's flat runs), in two thirds of the memory of three `u16`.
+type Word8 = u32;
+
+/// Bits per component of a [`Word8`].
+const WORD8_SHIFT: u32 = 8;
+
+impl LogWord for Word8 {
+    #[inline(always)]
+    fn pack(codes: [u16; 3]) -> Self {
+        u32::from(codes[0] & 0xFF)
+            | u32::from(codes[1] & 0xFF) << WORD8_SHIFT
+            | u32::from(codes[2] & 0xFF) << (2 * WORD8_SHIFT)
+    }
+
+    #[inline(always)]
+    fn unpack(self) -> [u16; 3] {
+        [self as u16 & 0xFF, (self >> WORD8_SHIFT) as u16 & 0xFF, (self >> (2 * WORD8_SHIFT)) as u16 & 0xFF]
     }
 }
 
@@ -1302,15 +1407,19 @@ fn read_out_fine(
     }
 }
 
-/// [`read_out_fine`] with F2 for the 8-bit log code: the first pass by the
-/// [`PairMeans`] table into an `i16` line buffer, the second by [`mean_log8`], runs
-/// of [`F2_RUN`] equal to their neighbours copied as there. The same bytes (the tests
-/// compare both with the reference readout).
+/// [`read_out_fine`] for the 8-bit log code in [`Word8`]s: F2's first pass by the
+/// [`PairMeans`] table into a line buffer of [`Line8`]s, the second by
+/// [`mean_log8`]. Where a run of [`F2_RUN`] pixels is flat (every word of the run
+/// and of the run below the same: a face of one colour, the open sky) the first pass
+/// makes one half sum for the run; where the line buffer is flat over a run and the
+/// pixel after it, the second pass makes one output pixel for the run. The same
+/// bytes as `read_out_fine` (the tests compare both with the reference readout).
 #[allow(clippy::too_many_arguments, reason = "the readout's registers, passed as they are")]
 fn read_out_log8(
     w: usize,
     h: usize,
-    codes: &[[u16; 3]],
+    codes: &[Word8],
+    filter: bool,
     pairs: &PairMeans,
     arith: LogArith,
     table: &[u8; GAMMA_PADDED],
@@ -1321,38 +1430,71 @@ fn read_out_log8(
         return;
     }
     assert!(out.len() >= 3 * w * rows.len(), "out holds the rows");
-    let gamma = |v: i32| table[v as usize & (GAMMA_PADDED - 1)];
-    let mut line = vec![[0i16; 3]; w];
+    let gamma = |v: i16| table[i32::from(v) as usize & (GAMMA_PADDED - 1)];
+    let pixel = |l: Line8| [gamma(lane(l, 0)), gamma(lane(l, 1)), gamma(lane(l, 2))];
+    let mut line: Vec<Line8> = vec![[0; 4]; w];
+    // Per run of the line buffer: whether pass 1 found it flat.
+    let mut flat_runs = vec![false; w.div_ceil(F2_RUN)];
     for (y, out_row) in rows.zip(out.chunks_exact_mut(3 * w)) {
         let row = &codes[y * w..][..w];
-        let below = &codes[(y + 1).min(h - 1) * w..][..w];
-        // Pass 1: one table read per component (a code's mean with itself is
-        // itself, so flat areas need no case of their own).
-        for ((l, a), b) in line.iter_mut().zip(row).zip(below) {
-            *l = [pairs.mean(a[0], b[0]), pairs.mean(a[1], b[1]), pairs.mean(a[2], b[2])];
+        if !filter {
+            for (px, &word) in out_row.chunks_exact_mut(3).zip(row) {
+                px.copy_from_slice(&pixel(pairs.mean_words(word, word)));
+            }
+            continue;
         }
-        // Pass 2: as in `read_out_fine`.
+        let below = &codes[(y + 1).min(h - 1) * w..][..w];
+        // Pass 1: half sums of vertically adjacent pixels.
+        let runs = line.chunks_mut(F2_RUN).zip(row.chunks(F2_RUN)).zip(below.chunks(F2_RUN));
+        for (((l, a), b), flat_run) in runs.zip(&mut flat_runs) {
+            let first = a[0];
+            let flat = a.iter().zip(b).fold(0, |d, (&a, &b)| d | (a ^ first) | (b ^ first)) == 0;
+            *flat_run = flat;
+            if flat {
+                l.fill(pairs.mean_words(first, first));
+            } else {
+                for ((l, &a), &b) in l.iter_mut().zip(a).zip(b) {
+                    *l = pairs.mean_words(a, b);
+                }
+            }
+        }
+        // Pass 2: half sums of horizontally adjacent ones; the last column's own
+        // value stands in for its right neighbour, and its mean with itself is
+        // itself.
         let (row_out, last) = out_row.split_last_chunk_mut::<3>().expect("a row holds a pixel");
         for (k, out_run) in row_out.chunks_mut(3 * F2_RUN).enumerate() {
             let x0 = k * F2_RUN;
             let n = out_run.len() / 3;
-            let (a, b) = (&line[x0..x0 + n], &line[x0 + 1..x0 + n + 1]);
-            if a == b {
-                for (px, a) in out_run.chunks_exact_mut(3).zip(a) {
-                    for (o, &v) in px.iter_mut().zip(a) {
-                        *o = gamma(i32::from(v));
-                    }
+            let run = &line[x0..=x0 + n];
+            let first = run[0];
+            // Flat when pass 1 made the run one value and the pixel after it has it.
+            if flat_runs[k] && run[n] == first {
+                let rgb = pixel(first);
+                for px in out_run.chunks_exact_mut(3) {
+                    px.copy_from_slice(&rgb);
                 }
             } else {
-                for ((px, a), b) in out_run.chunks_exact_mut(3).zip(a).zip(b) {
-                    for (ch, o) in px.iter_mut().enumerate() {
-                        *o = gamma(mean_log8(arith, a[ch], b[ch]));
+                for ((px, a), b) in out_run.chunks_exact_mut(3).zip(run).zip(&run[1..]) {
+                    // The three half sums side by side (and the spare lane's).
+                    let m: [i32; 4] = std::array::from_fn(|ch| mean_log8(arith, a[ch], b[ch]));
+                    for (o, m) in px.iter_mut().zip(m) {
+                        *o = table[m as usize & (GAMMA_PADDED - 1)];
                     }
                 }
             }
         }
-        *last = line[w - 1].map(|v| gamma(i32::from(v)));
+        *last = pixel(line[w - 1]);
     }
+}
+
+/// F2's three operands of the 8-bit code, R, G, B and a zero: eight bytes, compared
+/// and filled at once.
+type Line8 = [i16; 4];
+
+/// Component `ch` of a [`Line8`].
+#[inline(always)]
+fn lane(l: Line8, ch: usize) -> i16 {
+    l[ch]
 }
 
 /// The float path's gamma table: linear intensity (`GAMMA_TABLE_SIZE` steps over
@@ -1471,6 +1613,42 @@ mod tests {
         assert!(LogScale::get(PAIR_MEANS_BITS + 1).pair_means.is_none());
     }
 
+    impl VideoBuffer {
+        /// The fixed-point modes' codes, three per pixel.
+        fn codes(&self) -> Vec<[u16; 3]> {
+            match &self.memory {
+                Memory::Log { codes, .. } | Memory::Linear { codes, .. } => codes.clone(),
+                Memory::Log8 { codes, .. } => codes.iter().map(|w| w.unpack()).collect(),
+                Memory::Float(_) => unreachable!("fixed-point modes"),
+            }
+        }
+
+        /// Sets the fixed-point modes' codes.
+        fn set_codes(&mut self, new: &[[u16; 3]]) {
+            match &mut self.memory {
+                Memory::Log { codes, .. } | Memory::Linear { codes, .. } => codes.copy_from_slice(new),
+                Memory::Log8 { codes, .. } => {
+                    for (c, &n) in codes.iter_mut().zip(new) {
+                        *c = Word8::pack(n);
+                    }
+                }
+                Memory::Float(_) => unreachable!("fixed-point modes"),
+            }
+        }
+    }
+
+    /// A VMEM word of the 8-bit code holds its three codes.
+    #[test]
+    fn word8_packs_three_codes() {
+        for q in 0..=255u16 {
+            let codes = [q, 255 - q, q / 3];
+            assert_eq!(Word8::pack(codes).unpack(), codes);
+            assert_eq!(Word8::pack(codes) >> 24, 0);
+        }
+        assert_eq!(Word8::pack([1, 2, 3]), 0x03_02_01);
+        assert!(matches!(VideoBuffer::new(4, 4, VbMode::LOG8).memory, Memory::Log8 { .. }));
+    }
+
     /// The readout as it was first written (P1's arithmetic, one operation at a
     /// time), to compare the fast one with.
     fn reference_read_out(w: usize, h: usize, codes: &[[u16; 3]], filter: bool, mode: VbMode, gamma: f32) -> Vec<u8> {
@@ -1526,20 +1704,19 @@ mod tests {
                     VbMode::Log { bits } | VbMode::Linear { bits } => ((1u32 << bits) - 1) as u16,
                     VbMode::Float => unreachable!(),
                 };
-                let (Memory::Log { codes, .. } | Memory::Linear { codes, .. }) = &mut vb.memory else {
-                    unreachable!("fixed-point modes")
-                };
                 let mut word = [0; 3];
-                for c in codes.iter_mut() {
-                    // Runs: a new word two times in `change`, a component once.
-                    match rng.next() % change {
-                        0 | 1 => word = [rng.code(one), rng.code(one), rng.code(one)],
-                        2 => word[(rng.next() % 3) as usize] = rng.code(one),
-                        _ => {}
-                    }
-                    *c = word;
-                }
-                let codes = codes.clone();
+                let codes: Vec<[u16; 3]> = (0..w * h)
+                    .map(|_| {
+                        // Runs: a new word two times in `change`, a component once.
+                        match rng.next() % change {
+                            0 | 1 => word = [rng.code(one), rng.code(one), rng.code(one)],
+                            2 => word[(rng.next() % 3) as usize] = rng.code(one),
+                            _ => {}
+                        }
+                        word
+                    })
+                    .collect();
+                vb.set_codes(&codes);
                 for filter in [true, false] {
                     for gamma in [2.2, 1.0] {
                         let opts = Readout { filter, gamma };
@@ -1583,7 +1760,10 @@ mod tests {
                     2 => 1.25,
                     _ => (rng.next() % 10_000) as f32 / 10_000.0,
                 }));
-                let vis = Visible { px, py, sets, first: rng.next() as u16, covered: false };
+                // Whole cells' first fragments too (the cells wholly on the screen).
+                let whole = px <= 4 && py == 0 && rng.next() % 4 == 0;
+                let (sets, first) = if whole { ([FULL; 16], FULL) } else { (sets, rng.next() as u16) };
+                let vis = Visible { px, py, sets, first, covered: false };
                 a.accumulate(&vis, &[color; 16]);
                 b.accumulate_flat(&vis, color);
             }
@@ -1631,8 +1811,7 @@ mod tests {
                         expect[p][ch] = s.store(v);
                     }
                 }
-                let Memory::Log { codes, .. } = &vb.memory else { unreachable!("a log buffer") };
-                assert_eq!(codes, &expect, "log{bits}");
+                assert_eq!(vb.codes(), expect, "log{bits}");
             }
         }
     }
