@@ -8,7 +8,7 @@
 //!
 //! **Invariant**: polygon `i` never lies behind polygon `j > i` where they overlap on
 //! the screen (for non-intersecting geometry); every polygon is convex with at least
-//! three vertices on the 1/256-pixel grid ([`crate::vp::edge::SUBPIXEL_SNAP`]) and
+//! three vertices on the 1/256-pixel grid ([`crate::vp::edge::SNAP_ONE`]) and
 //! non-zero area; its edges are in the VP's edge code.
 
 use std::ops::Range;

@@ -1181,7 +1181,7 @@ impl LogWord for [u16; 3] {
 /// P1's 24-bit VMEM word of the 8-bit log code, in a `u32`: bits `[7:0]` R, `[15:8]`
 /// G, `[23:16]` B, `[31:24]` zero. One word per pixel compares, copies and fills
 /// at once (the readout's flat runs), in two thirds of the memory of three `u16`.
-type Word8 = u32;
+pub type Word8 = u32;
 
 /// Bits per component of a [`Word8`].
 const WORD8_SHIFT: u32 = 8;
