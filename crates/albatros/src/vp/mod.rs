@@ -272,10 +272,11 @@ impl VideoProcessor {
             // Cells this polygon finished covering are marked for the next ones.
             gq.mark_covered_cells(&mut covered_cells);
         }
-        // The background: the last fragment of every pixel.
+        // The background: the last fragment of every pixel, over the cells of this
+        // VP's share (the others are pre-masked whole: no subpixel of theirs is open).
         let (mut background_subpixels, mut background_firsts) = (0u64, 0u64);
-        for cy in 0..spp.rows {
-            for cx in 0..spp.stride {
+        for (cy, columns) in share_cells(&spp.share, spp.stride, spp.rows) {
+            for cx in columns {
                 let vis = spp.background(cx, cy);
                 if STATS {
                     background_subpixels += vis.sets.iter().map(|s| u64::from(s.count_ones())).sum::<u64>();
@@ -301,6 +302,28 @@ impl VideoProcessor {
     }
 }
 
+/// The last-level cells of a share of a `stride x rows`-cell screen, row by row:
+/// `(cy, the columns cx)`. With whole-cell tiles, only the rows and runs of columns of
+/// the share's tiles; with a pixel interleave (tiles under a cell), every cell.
+fn share_cells(
+    share: &gq::Share,
+    stride: usize,
+    rows: usize,
+) -> impl Iterator<Item = (usize, impl Iterator<Item = usize>)> {
+    let whole_cells = share.tile >= spp::CELL_SIDE && share.p * share.q > 1;
+    // Cells per tile side, and the share's first tile column and row.
+    let (side, p, q) = if whole_cells {
+        ((share.tile / spp::CELL_SIDE) as usize, share.p as usize, share.q as usize)
+    } else {
+        (stride.max(rows).max(1), 1, 1)
+    };
+    let (i, j) = if whole_cells { (share.i as usize, share.j as usize) } else { (0, 0) };
+    (0..rows).filter(move |cy| (cy / side) % q == j).map(move |cy| {
+        let columns = (i * side..stride).step_by(side * p).flat_map(move |x0| x0..(x0 + side).min(stride));
+        (cy, columns)
+    })
+}
+
 /// The pixel bounding box `[x0, x1) x [y0, y1)` of a polygon, inside the screen.
 pub fn bbox(verts: &[crate::frame::ScreenVertex], width: u32, height: u32) -> [u32; 4] {
     let (mut x0, mut x1, mut y0, mut y1) = (f32::MAX, f32::MIN, f32::MAX, f32::MIN);
@@ -315,4 +338,31 @@ pub fn bbox(verts: &[crate::frame::ScreenVertex], width: u32, height: u32) -> [u
     let lo = |v: f32, max: u32| ((v.floor() - 1.0).max(0.0) as u32).min(max);
     let hi = |v: f32, max: u32| ((v.ceil() + 1.0).max(0.0) as u32).min(max);
     [lo(x0, width), hi(x1, width), lo(y0, height), hi(y1, height)]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The background's cells of a share are the cells whose first pixel the share
+    /// owns (every cell with a pixel interleave), each once, row by row.
+    #[test]
+    fn share_cells_are_the_cells_of_the_share() {
+        let (stride, rows) = (37, 23);
+        for (tile, p, q) in [(4, 1, 1), (1, 2, 2), (2, 3, 1), (4, 2, 1), (16, 2, 2), (64, 3, 2), (8, 1, 3), (256, 2, 2)]
+        {
+            for j in 0..q {
+                for i in 0..p {
+                    let share = gq::Share { tile, p, q, i, j };
+                    let got: Vec<(usize, usize)> =
+                        share_cells(&share, stride, rows).flat_map(|(cy, xs)| xs.map(move |cx| (cx, cy))).collect();
+                    let want: Vec<(usize, usize)> = (0..rows)
+                        .flat_map(|cy| (0..stride).map(move |cx| (cx, cy)))
+                        .filter(|&(cx, cy)| tile < 4 || share.owns_pixel(4 * cx as u32, 4 * cy as u32))
+                        .collect();
+                    assert_eq!(got, want, "tile {tile}, {p} x {q}, VP ({i}, {j})");
+                }
+            }
+        }
+    }
 }

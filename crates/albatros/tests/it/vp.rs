@@ -436,17 +436,28 @@ fn same_bytes_whatever_the_matrix_size_or_thread_count() {
         single.set_textures(maps.clone());
         let want = single.render(&frame);
         for (p, q, tile, threads) in
-            [(2, 1, 16, 2), (1, 2, 4, 2), (2, 2, 1, 2), (3, 2, 8, 4), (4, 4, 64, 3), (2, 2, 256, 1)]
+            [(2, 1, 16, 2), (1, 2, 4, 2), (2, 2, 1, 2), (3, 2, 8, 4), (4, 4, 64, 3), (2, 2, 256, 1), (3, 1, 2, 2)]
         {
-            let mut m =
-                Matrix::new(200, 150, VpConfig { stats: true, ..VpConfig::default() }, p, q, tile, threads).unwrap();
-            m.set_textures(maps.clone());
-            let got = m.render(&frame);
-            assert!(got == want, "{name}: matrix {p}x{q}, tiles of {tile}, {threads} threads changed the image");
-            // The SPPs of all VPs together see each visible pixel once.
-            let c = m.counters();
-            assert_eq!(c.spp.pixels_visible, single.counters.spp.pixels_visible, "{name} {p}x{q}/{tile}");
+            // With counting (the machine's every step) and without (the shortcuts
+            // that skip work: one-colour polygons, whole cells, flat runs).
+            for stats in [true, false] {
+                let config = VpConfig { stats, ..VpConfig::default() };
+                let mut m = Matrix::new(200, 150, config, p, q, tile, threads).unwrap();
+                m.set_textures(maps.clone());
+                let got = m.render(&frame);
+                assert!(got == want, "{name}: matrix {p}x{q}, tiles of {tile}, {threads} threads changed the image");
+                if stats {
+                    // The SPPs of all VPs together see each visible pixel once.
+                    let c = m.counters();
+                    assert_eq!(c.spp.pixels_visible, single.counters.spp.pixels_visible, "{name} {p}x{q}/{tile}");
+                    assert_eq!(c.color, single.counters.color, "{name} {p}x{q}/{tile}");
+                }
+            }
         }
+        // One VP without counting: the same image.
+        let mut fast = VideoProcessor::new(200, 150, VpConfig::default());
+        fast.set_textures(maps.clone());
+        assert!(fast.render(&frame) == want, "{name}: counting changed the image");
     }
 }
 
