@@ -1451,7 +1451,10 @@ fn read_out_log8(
             let flat = a.iter().zip(b).fold(0, |d, (&a, &b)| d | (a ^ first) | (b ^ first)) == 0;
             *flat_run = flat;
             if flat {
-                l.fill(pairs.mean_words(first, first));
+                let m = pairs.mean_words(first, first);
+                for l in l {
+                    *l = m;
+                }
             } else {
                 for ((l, &a), &b) in l.iter_mut().zip(a).zip(b) {
                     *l = pairs.mean_words(a, b);
@@ -1470,9 +1473,8 @@ fn read_out_log8(
             // Flat when pass 1 made the run one value and the pixel after it has it.
             if flat_runs[k] && run[n] == first {
                 let rgb = pixel(first);
-                for px in out_run.chunks_exact_mut(3) {
-                    px.copy_from_slice(&rgb);
-                }
+                let pattern: [u8; 3 * F2_RUN] = std::array::from_fn(|i| rgb[i % 3]);
+                out_run.copy_from_slice(&pattern[..out_run.len()]);
             } else {
                 for ((px, a), b) in out_run.chunks_exact_mut(3).zip(run).zip(&run[1..]) {
                     // The three half sums side by side (and the spare lane's).
