@@ -65,8 +65,8 @@ impl<'a> ColorComputers<'a> {
         }
     }
 
-    /// Colours the visible pixels of one cell of polygon `poly` into `out` (pixels
-    /// with no visible subpixel are left alone).
+    /// Colours the visible pixels of one cell of polygon `poly` into `out` (what it
+    /// writes for pixels with no visible subpixel is unspecified).
     ///
     /// The visible pixels are packed into groups of [`LANES`] and each group is
     /// computed side by side, as arrays that vectorise, so that a cell's hidden
@@ -94,19 +94,9 @@ impl<'a> ColorComputers<'a> {
         let (u_q, v_q) = texture.map_or((0.0, 0.0), |(t, _)| (t.u.eval(qx, qy), t.v.eval(qx, qy)));
         let fog = self.fog_color.to_array();
         let rom = TacRom::get();
-        // The visible pixels (`4 y + x`), packed; a last group's spare lanes repeat
-        // its last pixel.
-        let count = visible.count_ones() as usize;
-        let mut pixels = [0usize; 16];
-        let mut rest = visible;
-        for p in &mut pixels[..count] {
-            *p = rest.trailing_zeros() as usize;
-            rest &= rest - 1;
-        }
-        for group in pixels[..count].chunks(LANES) {
-            let live = group.len();
-            let lane: [usize; LANES] = std::array::from_fn(|l| group[l.min(live - 1)]);
-            let (dx, dy) = (lane.map(|i| STEP_X[i]), lane.map(|i| STEP_Y[i]));
+        // One group of pixels side by side, `dx`, `dy` from Q per lane; the first
+        // `live` lanes are real pixels, the others repeat one of them.
+        let group = |dx: [f32; LANES], dy: [f32; LANES], live: usize| -> [[f32; LANES]; 3] {
             // `Z` and intensity, stepped from Q (P2 fig. 2).
             let mut z = [0.0f32; LANES];
             let mut intensity = [0.0f32; LANES];
@@ -139,11 +129,34 @@ impl<'a> ColorComputers<'a> {
                     f[l] = rom.fog(z[l] * self.inv_visibility);
                 }
             }
-            let c: [[f32; LANES]; 3] = std::array::from_fn(|c| {
-                std::array::from_fn(|l| c0[c][l] * intensity[l] * f[l] + fog[c] * (1.0 - f[l]))
-            });
-            for (l, &i) in group.iter().enumerate() {
-                out[i] = Vec3::new(c[0][l], c[1][l], c[2][l]);
+            std::array::from_fn(|c| std::array::from_fn(|l| c0[c][l] * intensity[l] * f[l] + fog[c] * (1.0 - f[l])))
+        };
+        let count = visible.count_ones() as usize;
+        if count > WHOLE_ROWS_FROM {
+            // Most of the cell: its four rows as the groups, with no packing (a
+            // hidden pixel's lane is computed and left unused).
+            for row in 0..CELL_ROWS {
+                let c = group(ROW_DX, [row as f32 - 1.0; LANES], LANES);
+                for l in 0..LANES {
+                    out[LANES * row + l] = Vec3::new(c[0][l], c[1][l], c[2][l]);
+                }
+            }
+        } else {
+            // The visible pixels (`4 y + x`), packed; a last group's spare lanes
+            // repeat its last pixel.
+            let mut pixels = [0usize; 16];
+            let mut rest = visible;
+            for p in &mut pixels[..count] {
+                *p = rest.trailing_zeros() as usize;
+                rest &= rest - 1;
+            }
+            for chunk in pixels[..count].chunks(LANES) {
+                let live = chunk.len();
+                let lane: [usize; LANES] = std::array::from_fn(|l| chunk[l.min(live - 1)]);
+                let c = group(lane.map(|i| STEP_X[i]), lane.map(|i| STEP_Y[i]), live);
+                for (l, &i) in chunk.iter().enumerate() {
+                    out[i] = Vec3::new(c[0][l], c[1][l], c[2][l]);
+                }
             }
         }
         if STATS {
@@ -176,6 +189,18 @@ impl ColorComputers<'_> {
         Some(out[Q_PIXEL])
     }
 }
+
+/// Above this many visible pixels a cell is coloured as its four whole rows, one
+/// group each; up to it, its visible pixels are packed into groups. (From 13 on the
+/// packed pixels take four groups too, so the rows cost the same work less the
+/// packing.)
+const WHOLE_ROWS_FROM: usize = 12;
+
+/// Rows of a cell.
+const CELL_ROWS: usize = 4;
+
+/// `dx` of the four pixels of a cell's row from Q.
+const ROW_DX: [f32; LANES] = [-1.0, 0.0, 1.0, 2.0];
 
 /// `dx` of pixel `i` (`4 y + x`) of a cell from Q, its pixel (1, 1).
 const STEP_X: [f32; 16] = [-1.0, 0.0, 1.0, 2.0, -1.0, 0.0, 1.0, 2.0, -1.0, 0.0, 1.0, 2.0, -1.0, 0.0, 1.0, 2.0];
@@ -315,9 +340,14 @@ mod tests {
                 footprint_scale: FOOTPRINT_FACTOR * 1e-3,
                 textures: &maps,
             };
-            // Any set of visible pixels, from one to all sixteen.
+            // Any set of visible pixels, from one to all sixteen; a third of them
+            // most of the cell (coloured as whole rows), all of it, or all but one.
             let mut sets = [0u16; 16];
-            let visible = (next() * 65535.0) as u16 | 1 << (round % 16);
+            let visible = match round % 6 {
+                0 => 0xFFFF,
+                1 => !(1u16 << (round / 6 % 16)),
+                _ => (next() * 65535.0) as u16 | 1 << (round % 16),
+            };
             for (i, s) in sets.iter_mut().enumerate() {
                 *s = if visible >> i & 1 == 1 { 1 + (next() * 65534.0) as u16 } else { 0 };
             }
@@ -326,8 +356,9 @@ mod tests {
             let unset = Vec3::splat(-7.0);
             let mut out = [unset; 16];
             cc.shade::<false>(&poly, &vis, &mut out, &mut Counters::new(9));
-            for (i, c) in out.iter().enumerate() {
-                let expect = if visible >> i & 1 == 1 { plain_pixel(&cc, &poly, px, py, i) } else { unset };
+            // The visible pixels; what the others get is unspecified.
+            for (i, c) in out.iter().enumerate().filter(|(i, _)| visible >> i & 1 == 1) {
+                let expect = plain_pixel(&cc, &poly, px, py, i);
                 let bits = |v: &Vec3| v.to_array().map(f32::to_bits);
                 assert_eq!(bits(c), bits(&expect), "round {round}, pixel {i}: {c} against {expect}");
             }
