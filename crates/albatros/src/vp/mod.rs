@@ -287,6 +287,8 @@ impl VideoProcessor {
                 }
             }
         }
+        // Every cell of the share is back in its cleared state.
+        spp.background_done();
         if STATS {
             // Counted once per frame instead of per fragment, exactly: every open
             // subpixel is set once, by a polygon or else by the background; every open
