@@ -188,9 +188,12 @@ impl EdgeCode {
         let shift = EDGE_FRAC_BITS - ROOT_V_BITS;
         let origin = (v1 << shift) as i64;
         let span = (v2 - v1) << shift;
-        // Exact: span has `shift` >= 16 zero low bits and root_side <= 2^13.
+        // Exact: span has `shift` >= 16 zero low bits and root_side <= 2^13, a power
+        // of two; so the quotient is the arithmetic shift (an `i128` division is a
+        // call of some hundred instructions, once per edge per frame).
         debug_assert_eq!(span % side, 0);
-        let slope = (span / side) as i64;
+        debug_assert!(root_side.is_power_of_two());
+        let slope = (span >> root_side.trailing_zeros()) as i64;
         // E = dy (x - ax) - dx (y - ay), then oriented towards greater V.
         let (mut ca, mut cb) = (dy, -dx);
         let flip = match tg {
