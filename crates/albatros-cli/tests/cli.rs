@@ -10,10 +10,32 @@ fn albatros(args: &[&str]) -> Output {
 
 /// A scratch file in a folder of this test run, removed when the test binary exits
 /// (each test removes what it made at its end).
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("albatros-cli-test-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+/// A scratch path `name` in a folder of its own, removed (with whatever the test
+/// wrote there) when the returned guard is dropped.
+fn tmp(name: &str) -> Scratch {
+    let dir = tempfile::Builder::new().prefix("albatros-cli-test-").tempdir().expect("a temporary folder");
+    let path = dir.path().join(name);
+    Scratch { _dir: dir, path }
+}
+
+/// A path in a temporary folder that lives as long as this.
+struct Scratch {
+    _dir: tempfile::TempDir,
+    path: PathBuf,
+}
+
+impl std::ops::Deref for Scratch {
+    type Target = std::path::Path;
+
+    fn deref(&self) -> &std::path::Path {
+        &self.path
+    }
+}
+
+impl AsRef<std::path::Path> for Scratch {
+    fn as_ref(&self) -> &std::path::Path {
+        &self.path
+    }
 }
 
 /// Removes a scratch file or folder made by [`tmp`].

@@ -9,10 +9,32 @@ fn albatros(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_albatros")).args(args).output().expect("the albatros binary runs")
 }
 
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("albatros-stats-test-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+/// A scratch path `name` in a folder of its own, removed (with whatever the test
+/// wrote there) when the returned guard is dropped.
+fn tmp(name: &str) -> Scratch {
+    let dir = tempfile::Builder::new().prefix("albatros-stats-test-").tempdir().expect("a temporary folder");
+    let path = dir.path().join(name);
+    Scratch { _dir: dir, path }
+}
+
+/// A path in a temporary folder that lives as long as this.
+struct Scratch {
+    _dir: tempfile::TempDir,
+    path: PathBuf,
+}
+
+impl std::ops::Deref for Scratch {
+    type Target = std::path::Path;
+
+    fn deref(&self) -> &std::path::Path {
+        &self.path
+    }
+}
+
+impl AsRef<std::path::Path> for Scratch {
+    fn as_ref(&self) -> &std::path::Path {
+        &self.path
+    }
 }
 
 fn text(bytes: &[u8]) -> String {

@@ -19,11 +19,9 @@ fn example_text() -> String {
     std::fs::read_to_string(scenes_dir().join("example.toml")).expect("scenes/example.toml")
 }
 
-/// A folder of its own for a test's files.
-fn temp_dir(test: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("albatros-load-{}-{test}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    dir
+/// A folder of its own for a test's files, removed when the test ends.
+fn temp_dir(test: &str) -> tempfile::TempDir {
+    tempfile::Builder::new().prefix(&format!("albatros-load-{test}-")).tempdir().expect("temp dir")
 }
 
 fn parse_in(text: &str, dir: &Path) -> Result<Scene, LoadError> {
@@ -427,23 +425,23 @@ fn obj_needs_a_material() {
 #[test]
 fn garbage_obj() {
     let dir = temp_dir("garbage_obj");
-    std::fs::write(dir.join("garbage.obj"), [0xffu8, 0xfe, 0x00, 0x13, 0x80, 0x81, 0x0a, 0xc3]).expect("write");
-    let msg = check_err_in(&obj_scene("garbage.obj"), &dir, &["model 'o' obj", "garbage.obj:1: ", "not text"]);
+    std::fs::write(dir.path().join("garbage.obj"), [0xffu8, 0xfe, 0x00, 0x13, 0x80, 0x81, 0x0a, 0xc3]).expect("write");
+    let msg = check_err_in(&obj_scene("garbage.obj"), dir.path(), &["model 'o' obj", "garbage.obj:1: ", "not text"]);
     assert!(msg.contains("garbage.obj"), "{msg}");
 }
 
 #[test]
 fn text_obj_without_faces() {
     let dir = temp_dir("text_obj_without_faces");
-    std::fs::write(dir.join("prose.obj"), "Dear reader,\nthis is not a mesh.\n").expect("write");
-    check_err_in(&obj_scene("prose.obj"), &dir, &["prose.obj", "no faces"]);
+    std::fs::write(dir.path().join("prose.obj"), "Dear reader,\nthis is not a mesh.\n").expect("write");
+    check_err_in(&obj_scene("prose.obj"), dir.path(), &["prose.obj", "no faces"]);
 }
 
 #[test]
 fn obj_with_bad_index() {
     let dir = temp_dir("obj_with_bad_index");
-    std::fs::write(dir.join("bad.obj"), "# bad\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 9\n").expect("write");
-    check_err_in(&obj_scene("bad.obj"), &dir, &["bad.obj:6: ", "position index 9", "out of range"]);
+    std::fs::write(dir.path().join("bad.obj"), "# bad\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 9\n").expect("write");
+    check_err_in(&obj_scene("bad.obj"), dir.path(), &["bad.obj:6: ", "position index 9", "out of range"]);
 }
 
 #[test]
