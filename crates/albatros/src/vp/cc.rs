@@ -16,6 +16,11 @@
 //!
 //! The visible pixels of a cell are dealt to four channels by their position in each
 //! 2 x 2 quad (channel `(x & 1) + 2 (y & 1)`), so that an edge's pixels spread evenly.
+//!
+//! On a processor with AVX2 the same code runs compiled for it (detected at run time;
+//! the build itself targets x86-64-v2): Rust neither fuses nor reorders float
+//! operations, so the bits are the same, and the tests compare both with the plain
+//! per-pixel definition.
 
 use glam::Vec3;
 
@@ -77,6 +82,44 @@ impl<'a> ColorComputers<'a> {
     /// bit those of a pixel-by-pixel loop. Only `exp` (and the texture unit's reads
     /// and `log2`) go pixel by pixel.
     pub fn shade<const STATS: bool>(
+        &self,
+        poly: &FramePolygon,
+        vis: &Visible,
+        out: &mut [Vec3; 16],
+        counters: &mut Counters,
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            // SAFETY: `shade_avx2` only needs AVX2, which the processor was just
+            // found to have.
+            #[allow(unsafe_code, reason = "the one call of a function compiled for AVX2, after detection")]
+            unsafe {
+                return self.shade_avx2::<STATS>(poly, vis, out, counters);
+            }
+        }
+        self.shade_scalar::<STATS>(poly, vis, out, counters)
+    }
+
+    /// [`Self::shade`] compiled for AVX2: the same operations on the same values (Rust
+    /// neither fuses nor reorders float operations, whatever the target), so the same
+    /// bits; the compiler lays the lanes' arithmetic out in 256-bit registers. Measured
+    /// on default at 1920 x 1080: colour + VB 47.1 -> 43.6 ms, city 27.9 -> 26.9 ms.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn shade_avx2<const STATS: bool>(
+        &self,
+        poly: &FramePolygon,
+        vis: &Visible,
+        out: &mut [Vec3; 16],
+        counters: &mut Counters,
+    ) {
+        self.shade_scalar::<STATS>(poly, vis, out, counters)
+    }
+
+    /// [`Self::shade`] for the build's target (x86-64-v2: SSE4.2) whatever the
+    /// processor; inlined into [`Self::shade_avx2`] too.
+    #[inline(always)]
+    pub fn shade_scalar<const STATS: bool>(
         &self,
         poly: &FramePolygon,
         vis: &Visible,
@@ -356,11 +399,15 @@ mod tests {
             let unset = Vec3::splat(-7.0);
             let mut out = [unset; 16];
             cc.shade::<false>(&poly, &vis, &mut out, &mut Counters::new(9));
+            // The build target's code, whatever the processor has.
+            let mut scalar = [unset; 16];
+            cc.shade_scalar::<false>(&poly, &vis, &mut scalar, &mut Counters::new(9));
             // The visible pixels; what the others get is unspecified.
             for (i, c) in out.iter().enumerate().filter(|(i, _)| visible >> i & 1 == 1) {
                 let expect = plain_pixel(&cc, &poly, px, py, i);
                 let bits = |v: &Vec3| v.to_array().map(f32::to_bits);
                 assert_eq!(bits(c), bits(&expect), "round {round}, pixel {i}: {c} against {expect}");
+                assert_eq!(bits(&scalar[i]), bits(&expect), "round {round}, pixel {i}: the target's code");
             }
         }
     }

@@ -70,7 +70,7 @@ impl TacRom {
 
     /// The fog factor `f = exp(-x)` for `x = Z / Z0`: 1 at 0, 0 from
     /// [`FOG_RANGE`] on (and for infinities); a NaN or negative `x` gives 1.
-    #[inline]
+    #[inline(always)]
     pub fn fog(&self, x: f32) -> f32 {
         // `max` before `min`, not `clamp`: NaN goes to 0 (no fog), where `clamp`
         // would keep it.
@@ -86,7 +86,7 @@ impl TacRom {
 
     /// `log2(x)` for a positive normal `x` (the callers pass footprints above one
     /// texel): the exponent plus the ROM's fraction of the mantissa.
-    #[inline]
+    #[inline(always)]
     pub fn log2(&self, x: f32) -> f32 {
         let bits = x.to_bits();
         let exponent = ((bits >> MANTISSA_BITS) & 0xFF) as i32 - 127;

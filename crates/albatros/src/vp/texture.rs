@@ -225,7 +225,7 @@ impl TextureMap {
     /// TAC's `log2` ROM and the texel reads go lane by lane. Both levels' look-ups share the
     /// fractional parts of `u`, `v`; when no lane blends in a coarser level (every
     /// `kr` is 0: a magnified map, or the last level), that level is not read.
-    #[inline]
+    #[inline(always)]
     pub fn sample_lanes(
         &self,
         u: &[f32; LANES],
