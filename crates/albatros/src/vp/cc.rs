@@ -117,7 +117,7 @@ impl<'a> ColorComputers<'a> {
     }
 
     /// [`Self::shade`] for the build's target (x86-64-v2: SSE4.2) whatever the
-    /// processor; inlined into [`Self::shade_avx2`] too.
+    /// processor; inlined into the AVX2 copy too.
     #[inline(always)]
     pub fn shade_scalar<const STATS: bool>(
         &self,
