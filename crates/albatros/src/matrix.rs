@@ -19,7 +19,7 @@ use rayon::prelude::*;
 use crate::frame::FrameList;
 use crate::model::stats::Counters;
 use crate::vp::gq::Share;
-use crate::vp::vb::Image;
+use crate::vp::vb::{Image, VideoBuffer};
 use crate::vp::{VideoProcessor, VpConfig};
 
 /// A matrix of video processors.
@@ -131,6 +131,12 @@ impl Matrix {
     /// [`Self::read_out`] into an image kept from frame to frame (its allocation
     /// reused).
     pub fn read_out_into(&mut self, image: &mut Image) {
+        // P1's 8-bit code: each tile read from its VP's memory, no gathering copy.
+        let parts: Vec<_> = self.vps.iter().map(|vp| (&vp.vb, &vp.gq.share)).collect();
+        let readout = self.vps[0].config.readout;
+        if self.pool.install(|| VideoBuffer::read_out_shares_into(&parts, &readout, image)) {
+            return;
+        }
         let (first, rest) = self.vps.split_first_mut().expect("at least one VP");
         let others: Vec<_> = rest.iter().map(|vp| (&vp.vb, &vp.gq.share)).collect();
         self.pool.install(|| {

@@ -949,6 +949,57 @@ impl VideoBuffer {
         });
     }
 
+    /// Reads out the one interleaved image of a matrix's video memories (P3) into
+    /// `image`, in bands of rows on the current rayon pool, reading each tile from the
+    /// memory of the VP that owns it: the bytes of [`Self::copy_shares_from`] then
+    /// [`Self::read_out_parallel_into`], without the copy (4 MiB a frame at 1920 x
+    /// 1080). Only for the 8-bit log code with tiles of whole F2 runs, where it
+    /// returns `true`; otherwise it does nothing and returns `false`. `parts`: the
+    /// buffers (same size and mode) with their shares, which cover the screen and do
+    /// not overlap.
+    pub fn read_out_shares_into(parts: &[(&VideoBuffer, &Share)], opts: &Readout, image: &mut Image) -> bool {
+        use rayon::prelude::*;
+        let Some(&(first, first_share)) = parts.first() else { return false };
+        let (p, q, tile) = (first_share.p as usize, first_share.q as usize, first_share.tile as usize);
+        let (w, h) = (first.width as usize, first.height as usize);
+        // The memory of the VP of tile column `i`, row `j`.
+        let mut owners: Vec<Option<&[Word8]>> = vec![None; p * q];
+        for (vb, share) in parts {
+            let same = (vb.width, vb.height) == (first.width, first.height)
+                && (share.p, share.q, share.tile) == (first_share.p, first_share.q, first_share.tile);
+            match &vb.memory {
+                Memory::Log8 { codes, .. } if same && (share.i as usize) < p && (share.j as usize) < q => {
+                    owners[share.j as usize * p + share.i as usize] = Some(codes)
+                }
+                _ => return false,
+            }
+        }
+        let Memory::Log8 { scale, .. } = &first.memory else { return false };
+        let Some(owners) = owners.into_iter().collect::<Option<Vec<_>>>() else { return false };
+        if tile % F2_RUN != 0 || w == 0 || h == 0 {
+            return false;
+        }
+        let pairs = scale.pair_means.as_ref().expect("the 8-bit scale has the pair table");
+        let (arith, table) = (LogArith::new(scale), first.gamma_table(opts));
+        let table: &[u8; GAMMA_PADDED] = table.as_slice().try_into().expect("a padded gamma table");
+        // Pixels `x0..` of row `y` to the end of their tile, from its VP.
+        let segment = |y: usize, x0: usize| {
+            let codes = owners[(y / tile) % q * p + (x0 / tile) % p];
+            &codes[y * w + x0..y * w + (x0 / tile * tile + tile).min(w)]
+        };
+        image.width = first.width;
+        image.height = first.height;
+        // Every byte is written below; `resize` only zeroes a first or larger frame.
+        image.pixels.resize(w * h * 3, 0);
+        let band = READOUT_BAND_ROWS;
+        image.pixels.par_chunks_mut(band * w * 3).enumerate().for_each(|(k, out)| {
+            let y0 = k * band;
+            let rows = y0..(y0 + band).min(h);
+            read_out_log8_from(w, h, tile, &segment, opts.filter, pairs, arith, table, rows, out);
+        });
+        true
+    }
+
     /// Reads out rows `rows` (F2 uses the row below the last one) into `out`, RGB8,
     /// `3 * width * rows.len()` bytes.
     pub fn read_out_rows(&self, opts: &Readout, rows: std::ops::Range<usize>, out: &mut [u8]) {
@@ -1426,6 +1477,28 @@ fn read_out_log8(
     rows: std::ops::Range<usize>,
     out: &mut [u8],
 ) {
+    let segment = |y: usize, x0: usize| &codes[y * w + x0..(y + 1) * w];
+    read_out_log8_from(w, h, w.max(1), &segment, filter, pairs, arith, table, rows, out);
+}
+
+/// [`read_out_log8`] with row `y` read from `segment(y, x0)`: the words of pixels
+/// `x0..` of row `y` up to the next multiple of `seg` (or the row's end), `x0` a
+/// multiple of `seg`, `seg` a multiple of [`F2_RUN`] or the whole width. A matrix's
+/// readout reads each tile's pixels from the VP that owns it, with no copy of the
+/// memories into one.
+#[allow(clippy::too_many_arguments, reason = "the readout's registers, passed as they are")]
+fn read_out_log8_from<'a>(
+    w: usize,
+    h: usize,
+    seg: usize,
+    segment: &impl Fn(usize, usize) -> &'a [Word8],
+    filter: bool,
+    pairs: &PairMeans,
+    arith: LogArith,
+    table: &[u8; GAMMA_PADDED],
+    rows: std::ops::Range<usize>,
+    out: &mut [u8],
+) {
     if w == 0 || rows.is_empty() {
         return;
     }
@@ -1436,30 +1509,22 @@ fn read_out_log8(
     // Per run of the line buffer: whether pass 1 found it flat.
     let mut flat_runs = vec![false; w.div_ceil(F2_RUN)];
     for (y, out_row) in rows.zip(out.chunks_exact_mut(3 * w)) {
-        let row = &codes[y * w..][..w];
         if !filter {
-            for (px, &word) in out_row.chunks_exact_mut(3).zip(row) {
-                px.copy_from_slice(&pixel(pairs.mean_words(word, word)));
+            for x0 in (0..w).step_by(seg) {
+                let row = segment(y, x0);
+                for (px, &word) in out_row[3 * x0..].chunks_exact_mut(3).zip(row) {
+                    px.copy_from_slice(&pixel(pairs.mean_words(word, word)));
+                }
             }
             continue;
         }
-        let below = &codes[(y + 1).min(h - 1) * w..][..w];
-        // Pass 1: half sums of vertically adjacent pixels.
-        let runs = line.chunks_mut(F2_RUN).zip(row.chunks(F2_RUN)).zip(below.chunks(F2_RUN));
-        for (((l, a), b), flat_run) in runs.zip(&mut flat_runs) {
-            let first = a[0];
-            let flat = a.iter().zip(b).fold(0, |d, (&a, &b)| d | (a ^ first) | (b ^ first)) == 0;
-            *flat_run = flat;
-            if flat {
-                let m = pairs.mean_words(first, first);
-                for l in l {
-                    *l = m;
-                }
-            } else {
-                for ((l, &a), &b) in l.iter_mut().zip(a).zip(b) {
-                    *l = pairs.mean_words(a, b);
-                }
-            }
+        let below_y = (y + 1).min(h - 1);
+        // Pass 1: half sums of vertically adjacent pixels, a segment at a time.
+        for x0 in (0..w).step_by(seg) {
+            let (row, below) = (segment(y, x0), segment(below_y, x0));
+            let n = row.len().min(below.len());
+            let (line, flat_runs) = (&mut line[x0..x0 + n], &mut flat_runs[x0 / F2_RUN..]);
+            read_out_log8_pass1(line, &row[..n], &below[..n], flat_runs, pairs);
         }
         // Pass 2: half sums of horizontally adjacent ones; the last column's own
         // value stands in for its right neighbour, and its mean with itself is
@@ -1486,6 +1551,29 @@ fn read_out_log8(
             }
         }
         *last = pixel(line[w - 1]);
+    }
+}
+
+/// F2's first pass over a stretch of a row (`row`) and the row below it, into the
+/// line buffer, a run of [`F2_RUN`] at a time: one half sum for a flat run (every
+/// word of the run and of the run below the same), recorded in `flat_runs`.
+#[inline(always)]
+fn read_out_log8_pass1(line: &mut [Line8], row: &[Word8], below: &[Word8], flat_runs: &mut [bool], pairs: &PairMeans) {
+    let runs = line.chunks_mut(F2_RUN).zip(row.chunks(F2_RUN)).zip(below.chunks(F2_RUN));
+    for (((l, a), b), flat_run) in runs.zip(flat_runs) {
+        let first = a[0];
+        let flat = a.iter().zip(b).fold(0, |d, (&a, &b)| d | (a ^ first) | (b ^ first)) == 0;
+        *flat_run = flat;
+        if flat {
+            let m = pairs.mean_words(first, first);
+            for l in l {
+                *l = m;
+            }
+        } else {
+            for ((l, &a), &b) in l.iter_mut().zip(a).zip(b) {
+                *l = pairs.mean_words(a, b);
+            }
+        }
     }
 }
 

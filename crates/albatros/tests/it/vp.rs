@@ -458,6 +458,18 @@ fn same_bytes_whatever_the_matrix_size_or_thread_count() {
         let mut fast = VideoProcessor::new(200, 150, VpConfig::default());
         fast.set_textures(maps.clone());
         assert!(fast.render(&frame) == want, "{name}: counting changed the image");
+        // The other video memories (read out through one gathered memory) and no
+        // F2, against one VP of the same kind.
+        use albatros::vp::vb::{Readout, VbMode};
+        for (vb, filter) in [(VbMode::FLOAT, true), (VbMode::Log { bits: 10 }, true), (VbMode::LOG8, false)] {
+            let config = VpConfig { vb, readout: Readout { filter, ..Readout::default() }, ..VpConfig::default() };
+            let mut one = VideoProcessor::new(200, 150, config);
+            one.set_textures(maps.clone());
+            let want = one.render(&frame);
+            let mut m = Matrix::new(200, 150, config, 2, 2, 16, 2).unwrap();
+            m.set_textures(maps.clone());
+            assert!(m.render(&frame) == want, "{name}: {vb}, filter {filter}: the matrix changed the image");
+        }
     }
 }
 
