@@ -681,9 +681,11 @@ impl FrameBuilder<'_> {
             };
             let ambient = f64::from(env.ambient);
             let cos_a = if material.emissive { 1.0 } else { ambient + (1.0 - ambient) * normal.dot(sun).max(0.0) };
-            // P5: P' = Pb + (P cos a - Pb) exp(-beta z).
+            // P5: P' = Pb + (P cos a - Pb) exp(-beta z). With no attenuation the
+            // factor is exp(0) = 1 exactly (z is finite), and not computed.
             let pb = f64::from(env.background_brightness);
-            let intensity = pb + (f64::from(v.intensity) * cos_a - pb) * (-f64::from(env.attenuation) * p.z).exp();
+            let fade = if env.attenuation == 0.0 { 1.0 } else { (-f64::from(env.attenuation) * p.z).exp() };
+            let intensity = pb + (f64::from(v.intensity) * cos_a - pb) * fade;
             scratch.eye.push(EyeVertex { position: p, intensity });
         }
         if and != 0 {
