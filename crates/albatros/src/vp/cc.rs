@@ -137,9 +137,10 @@ impl<'a> ColorComputers<'a> {
         let (u_q, v_q) = texture.map_or((0.0, 0.0), |(t, _)| (t.u.eval(qx, qy), t.v.eval(qx, qy)));
         let fog = self.fog_color.to_array();
         let rom = TacRom::get();
-        // One group of pixels side by side, `dx`, `dy` from Q per lane; the first
-        // `live` lanes are real pixels, the others repeat one of them.
-        let group = |dx: [f32; LANES], dy: [f32; LANES], live: usize| -> [[f32; LANES]; 3] {
+        // One group of pixels side by side, `dx`, `dy` from Q per lane (lanes not
+        // wanted, a packed group's spares or a row's hidden pixels, are computed
+        // like the others: no branch per lane).
+        let group = |dx: [f32; LANES], dy: [f32; LANES]| -> [[f32; LANES]; 3] {
             // `Z` and intensity, stepped from Q (P2 fig. 2).
             let mut z = [0.0f32; LANES];
             let mut intensity = [0.0f32; LANES];
@@ -159,19 +160,18 @@ impl<'a> ColorComputers<'a> {
                         v[l] = (v_q + t.v.a * dx[l] + t.v.b * dy[l]) * z[l];
                         footprint[l] = self.footprint_scale * z[l] * z[l] * t.par;
                     }
-                    let m = map.sample_lanes(&u, &v, &footprint, live);
+                    let m = map.sample_lanes(&u, &v, &footprint);
                     let (c1, c2) = (t.color1.to_array(), t.color2.to_array());
                     std::array::from_fn(|c| std::array::from_fn(|l| c1[c] * m[l] + c2[c] * (1.0 - m[l])))
                 }
                 None => poly.color.to_array().map(|c| [c; LANES]),
             };
             // Fog, `exp(-Z / Z0)` from the TAC's ROM; none is `f = 1`.
-            let mut f = [1.0f32; LANES];
-            if self.inv_visibility != 0.0 {
-                for l in 0..live {
-                    f[l] = rom.fog(z[l] * self.inv_visibility);
-                }
-            }
+            let f = if self.inv_visibility != 0.0 {
+                rom.fog_lanes(&z.map(|z| z * self.inv_visibility))
+            } else {
+                [1.0f32; LANES]
+            };
             std::array::from_fn(|c| std::array::from_fn(|l| c0[c][l] * intensity[l] * f[l] + fog[c] * (1.0 - f[l])))
         };
         let count = visible.count_ones() as usize;
@@ -179,7 +179,7 @@ impl<'a> ColorComputers<'a> {
             // Most of the cell: its four rows as the groups, with no packing (a
             // hidden pixel's lane is computed and left unused).
             for row in 0..CELL_ROWS {
-                let c = group(ROW_DX, [row as f32 - 1.0; LANES], LANES);
+                let c = group(ROW_DX, [row as f32 - 1.0; LANES]);
                 for l in 0..LANES {
                     out[LANES * row + l] = Vec3::new(c[0][l], c[1][l], c[2][l]);
                 }
@@ -196,7 +196,7 @@ impl<'a> ColorComputers<'a> {
             for chunk in pixels[..count].chunks(LANES) {
                 let live = chunk.len();
                 let lane: [usize; LANES] = std::array::from_fn(|l| chunk[l.min(live - 1)]);
-                let c = group(lane.map(|i| STEP_X[i]), lane.map(|i| STEP_Y[i]), live);
+                let c = group(lane.map(|i| STEP_X[i]), lane.map(|i| STEP_Y[i]));
                 for (l, &i) in chunk.iter().enumerate() {
                     out[i] = Vec3::new(c[0][l], c[1][l], c[2][l]);
                 }

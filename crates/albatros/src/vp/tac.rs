@@ -97,6 +97,58 @@ impl TacRom {
         exponent as f32 + (a + t * (b - a))
     }
 
+    /// [`Self::fog`] of `N` values side by side, bit for bit lane by lane, laid out
+    /// as arrays over the lanes so that the arithmetic vectorises; only the two ROM
+    /// reads per lane go one by one. The floor is taken as `floor` and
+    /// [`small_int`] (where `s as i32` costs a branch per lane for Rust's saturating
+    /// cast); `s` is in `0..=4096`, so both give the same integer, and `t` is
+    /// formed from that integer as in [`Self::fog`].
+    #[inline(always)]
+    pub fn fog_lanes<const N: usize>(&self, x: &[f32; N]) -> [f32; N] {
+        let full = FOG_RANGE * FOG_STEPS_PER_UNIT;
+        let mut s = [0.0f32; N];
+        let mut k = [0u32; N];
+        for l in 0..N {
+            s[l] = (x[l] * FOG_STEPS_PER_UNIT as f32).max(0.0).min(full as f32);
+            // In `0..=4096` already: the `min` tells the compiler so, and with it
+            // that `k + 1` is inside the table (no bounds check).
+            k[l] = (small_int(s[l].floor()) as u32).min(full);
+        }
+        let mut f = [0.0f32; N];
+        for l in 0..N {
+            let t = s[l] - k[l] as i32 as f32;
+            let (a, b) = (self.fog[k[l] as usize], self.fog[k[l] as usize + 1]);
+            f[l] = a + t * (b - a);
+        }
+        f
+    }
+
+    /// [`Self::log2`] of `N` values side by side, bit for bit lane by lane, as
+    /// arrays that vectorise (only the ROM reads go one by one). Any bits give a
+    /// finite value (the address is 8 bits of the mantissa), so lanes that the
+    /// caller will not use may hold anything.
+    #[inline(always)]
+    pub fn log2_lanes<const N: usize>(&self, x: &[f32; N]) -> [f32; N] {
+        let low_bits = MANTISSA_BITS - LOG2_ADDRESS_BITS;
+        let mut exponent = [0.0f32; N];
+        let mut k = [0u32; N];
+        let mut t = [0.0f32; N];
+        for l in 0..N {
+            let bits = x[l].to_bits();
+            exponent[l] = (((bits >> MANTISSA_BITS) & 0xFF) as i32 - 127) as f32;
+            k[l] = (bits >> low_bits) & ((1 << LOG2_ADDRESS_BITS) - 1);
+            // Below 2^15: through `i32` the same value, in one conversion that
+            // vectorises.
+            t[l] = (bits & ((1 << low_bits) - 1)) as i32 as f32 * (1.0 / (1u32 << low_bits) as f32);
+        }
+        let mut out = [0.0f32; N];
+        for l in 0..N {
+            let (a, b) = (self.log2[k[l] as usize], self.log2[k[l] as usize + 1]);
+            out[l] = exponent[l] + (a + t[l] * (b - a));
+        }
+        out
+    }
+
     /// The fog ROM's entries.
     pub fn fog_table(&self) -> &[f32] {
         &self.fog[..]
@@ -117,6 +169,15 @@ impl TacRom {
     pub fn log2_hex(&self) -> String {
         self.log2.iter().map(|v| format!("{:08x}\n", v.to_bits())).collect()
     }
+}
+
+/// `x as i32` for an integral `x` in `-2^22..=2^22`, in operations that vectorise
+/// (the cast itself costs a branch per lane for Rust's saturation): adding
+/// `1.5 * 2^23`, exact there, puts `x` in the low bits of the mantissa.
+#[inline(always)]
+pub(crate) fn small_int(x: f32) -> i32 {
+    const MAGIC: f32 = 12_582_912.0;
+    (x + MAGIC).to_bits() as i32 - MAGIC.to_bits() as i32
 }
 
 #[cfg(test)]
@@ -151,6 +212,73 @@ mod tests {
             assert!(f <= last, "fog rises at x = {}", i as f32 / 1024.0);
             last = f;
         }
+    }
+
+    /// Values that probe the ROMs' ends and every odd input: zeros of both signs,
+    /// NaN, infinities, negatives, the last entries, subnormals.
+    const ODD: [f32; 14] = [
+        0.0,
+        -0.0,
+        f32::NAN,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        -3.0,
+        15.999_999,
+        16.0,
+        16.000_002,
+        1e30,
+        -1e-30,
+        1e-40,
+        f32::MIN_POSITIVE,
+        f32::MAX,
+    ];
+
+    #[test]
+    fn rom_lanes_are_the_roms_bit_for_bit() {
+        let rom = TacRom::get();
+        let mut h = 0x2545_F491u32;
+        let mut next = || {
+            h ^= h << 13;
+            h ^= h >> 17;
+            h ^= h << 5;
+            h
+        };
+        for round in 0..200_000 {
+            // Fog arguments over the ROM's range and past it; log2 arguments over
+            // every bit pattern.
+            let x: [f32; 4] = std::array::from_fn(|l| match (round + l) % 7 {
+                0 => ODD[(round / 7 + l) % ODD.len()],
+                _ => (next() >> 8) as f32 / (1u32 << 24) as f32 * 20.0 - 2.0,
+            });
+            let fog = rom.fog_lanes(&x);
+            let bits: [f32; 4] = std::array::from_fn(|_| f32::from_bits(next()));
+            let log2 = rom.log2_lanes(&bits);
+            for l in 0..4 {
+                assert_eq!(fog[l].to_bits(), rom.fog(x[l]).to_bits(), "fog of {}", x[l]);
+                assert_eq!(log2[l].to_bits(), rom.log2(bits[l]).to_bits(), "log2 of {}", bits[l]);
+            }
+        }
+        // Every fog entry and the points between.
+        for k in 0..=(FOG_RANGE * FOG_STEPS_PER_UNIT * 4 + 8) {
+            let x = [k as f32 / 1024.0, (k as f32 + 0.5) / 1024.0];
+            let fog = rom.fog_lanes(&x);
+            for l in 0..2 {
+                assert_eq!(fog[l].to_bits(), rom.fog(x[l]).to_bits(), "fog of {}", x[l]);
+            }
+        }
+        let log2 = rom.log2_lanes(&ODD);
+        for (l, x) in ODD.iter().enumerate() {
+            assert_eq!(log2[l].to_bits(), rom.log2(*x).to_bits(), "log2 of {x}");
+            assert!(log2[l].is_finite(), "log2 of {x}");
+        }
+    }
+
+    #[test]
+    fn small_int_is_the_cast_for_integers() {
+        for x in (-(1i32 << 22)..=(1 << 22)).step_by(997).chain([-1, 0, 1, 4096, 1 << 22, -(1 << 22)]) {
+            assert_eq!(small_int(x as f32), x);
+        }
+        assert_eq!(small_int(-0.0), 0);
     }
 
     #[test]

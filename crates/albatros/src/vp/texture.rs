@@ -32,7 +32,7 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-use super::tac::TacRom;
+use super::tac::{small_int, TacRom};
 use crate::db::{Scene, TextureSource};
 
 /// The names of the built-in procedural maps ([`builtin`]), the names a scene's
@@ -217,29 +217,31 @@ impl TextureMap {
     }
 
     /// [`Self::sample`] for [`LANES`] pixels side by side: lane `l` of the result is
-    /// `self.sample(u[l], v[l], footprint[l])`, bit for bit, for the first `live`
-    /// lanes; the other lanes are not sampled (their values mean nothing).
+    /// `self.sample(u[l], v[l], footprint[l])`, bit for bit. Every lane is sampled,
+    /// whatever its inputs (the addresses are wrapped with masks), so that no
+    /// lane-by-lane branch is needed; the colour computers fill a group's spare
+    /// lanes with its last pixel.
     ///
     /// The same operations as [`Self::sample`] lane by lane, in the same order, laid
     /// out as arrays over the lanes so that the arithmetic vectorises: only the
-    /// TAC's `log2` ROM and the texel reads go lane by lane. Both levels' look-ups share the
-    /// fractional parts of `u`, `v`; when no lane blends in a coarser level (every
-    /// `kr` is 0: a magnified map, or the last level), that level is not read.
+    /// TAC's `log2` ROM reads and the texel reads go lane by lane. The clamps of
+    /// the level of detail are selects over lanes (all computed, one kept). Both
+    /// levels' look-ups share the fractional parts of `u`, `v`; when no lane blends
+    /// in a coarser level (every `kr` is 0: a magnified map, or the last level),
+    /// that level is not read.
     #[inline(always)]
-    pub fn sample_lanes(
-        &self,
-        u: &[f32; LANES],
-        v: &[f32; LANES],
-        footprint: &[f32; LANES],
-        live: usize,
-    ) -> [f32; LANES] {
+    pub fn sample_lanes(&self, u: &[f32; LANES], v: &[f32; LANES], footprint: &[f32; LANES]) -> [f32; LANES] {
         let n = self.log2_side;
-        let live = live.min(LANES);
-        // Level of detail ([`Self::lod`]).
-        let (rom, side, top, beyond) = (TacRom::get(), self.side() as f32, n as f32, (2u32 << n) as f32);
+        // Level of detail ([`Self::lod`], [`lod_of_texels`]).
+        let (side, top, beyond) = (self.side() as f32, n as f32, (2u32 << n) as f32);
+        let texels: [f32; LANES] = std::array::from_fn(|l| footprint[l] * side);
+        // `log2` of every lane (finite whatever the bits), kept where the clamp
+        // does not settle the level.
+        let log = TacRom::get().log2_lanes(&texels);
         let mut lod = [0.0f32; LANES];
-        for l in 0..live {
-            lod[l] = lod_of_texels(rom, footprint[l] * side, top, beyond);
+        for l in 0..LANES {
+            let above = if texels[l] < beyond { log[l].min(top) } else { top };
+            lod[l] = if texels[l] > 1.0 { above } else { 0.0 };
         }
         // [`Self::trilinear`]: `lod` is already in `0..=n`, so its clamp is the
         // identity (a zero's sign aside, which changes neither `k` nor `kr`), and
@@ -256,7 +258,7 @@ impl TextureMap {
             fv[l] = fract01(v[l]);
         }
         // [`Self::bilinear`] in level `k`.
-        let fine = LevelLookup::new(n, &k, &fu, &fv).read(&self.texels, live);
+        let fine = LevelLookup::new(n, &k, &fu, &fv).read(&self.texels);
         if kr == [0.0; LANES] {
             // Trilinear keeps the fine value alone in every lane.
             return fine;
@@ -266,7 +268,7 @@ impl TextureMap {
         for k in &mut k {
             *k = (*k + 1).min(n as i32);
         }
-        let coarse = LevelLookup::new(n, &k, &fu, &fv).read(&self.texels, live);
+        let coarse = LevelLookup::new(n, &k, &fu, &fv).read(&self.texels);
         // Where `kr` is 0 the blend is the fine value exactly: both values are
         // finite, the fine one is not -0, and `fine + 0 * d` is `fine`.
         std::array::from_fn(|l| fine[l] + kr[l] * (coarse[l] - fine[l]))
@@ -316,31 +318,26 @@ impl LevelLookup {
         lookup
     }
 
-    /// P2 eq. (3) per lane: the texels `T1..T4` read for the first `live` lanes
-    /// (the others read as 0), then interpolated.
+    /// P2 eq. (3) per lane: the texels `T1..T4` read, then interpolated.
+    ///
+    /// Every address is inside the map: level `k`'s texels start at `start` and
+    /// hold `side^2`, and a row and a column are masked to `side - 1`. The `min`
+    /// with the last texel is therefore the identity; it is there to show the
+    /// compiler so (one vector operation per quad, where a bounds check costs a
+    /// compare and a branch per read).
     #[inline(always)]
-    fn read(&self, texels: &[u8], live: usize) -> [f32; LANES] {
-        let mut t = [[0u8; LANES]; 4];
-        for l in 0..live {
-            for q in 0..4 {
-                t[q][l] = texels[self.index[q][l] as usize];
+    fn read(&self, texels: &[u8]) -> [f32; LANES] {
+        let last = (texels.len() - 1) as u32;
+        let texels = &texels[..=last as usize];
+        let mut t = [[0.0f32; LANES]; 4];
+        for (t, index) in t.iter_mut().zip(&self.index) {
+            let index: [u32; LANES] = index.map(|i| i.min(last));
+            for (t, i) in t.iter_mut().zip(index) {
+                *t = f32::from(texels[i as usize]);
             }
         }
-        let mut out = [0.0f32; LANES];
-        for l in 0..LANES {
-            let (t1, t2, t3, t4) = (f32::from(t[0][l]), f32::from(t[1][l]), f32::from(t[2][l]), f32::from(t[3][l]));
-            out[l] = eq3(self.ku[l], self.kv[l], t1, t2, t3, t4);
-        }
-        out
+        std::array::from_fn(|l| eq3(self.ku[l], self.kv[l], t[0][l], t[1][l], t[2][l], t[3][l]))
     }
-}
-
-/// `x as i32` for an integral `x` in `-2^22..=2^22`, in operations that vectorise:
-/// adding `1.5 * 2^23` (exact there) puts `x` in the low bits of the mantissa.
-#[inline]
-fn small_int(x: f32) -> i32 {
-    const MAGIC: f32 = 12_582_912.0;
-    (x + MAGIC).to_bits() as i32 - MAGIC.to_bits() as i32
 }
 
 /// [`TextureMap::lod`] of a footprint of `texels` level-0 texels, `top` = `n`,
@@ -790,9 +787,8 @@ mod tests {
                     0 if (i + round) % 5 == 0 => odd[(i + round) % odd.len()],
                     _ => (next() * 30.0 - 15.0).exp2() / scale,
                 });
-                let live = 1 + round % LANES;
-                let t = map.sample_lanes(&u, &v, &footprint, live);
-                for i in 0..live {
+                let t = map.sample_lanes(&u, &v, &footprint);
+                for i in 0..LANES {
                     let expect = plain_sample(&map, u[i], v[i], footprint[i]);
                     assert_eq!(t[i].to_bits(), expect.to_bits(), "{map:?} u {} v {} fp {}", u[i], v[i], footprint[i]);
                     assert_eq!(map.sample(u[i], v[i], footprint[i]).to_bits(), expect.to_bits());
@@ -807,7 +803,7 @@ mod tests {
                     _ => f32::from_bits(x.to_bits() - 1),
                 });
                 let (u, v) = ([0.3; LANES], [0.7; LANES]);
-                let t = map.sample_lanes(&u, &v, &fp, LANES);
+                let t = map.sample_lanes(&u, &v, &fp);
                 for i in 0..LANES {
                     assert_eq!(t[i].to_bits(), plain_sample(&map, 0.3, 0.7, fp[i]).to_bits());
                 }
