@@ -117,15 +117,50 @@ pub struct BspStats {
     pub depth: usize,
 }
 
+/// A face as the GP reads it every frame: [`BspFace`] without its own vertex
+/// allocation, its vertices a range of [`Bsp::record_vertices`].
+///
+/// Why a second copy: the GP reads every face of the tree every frame, in the
+/// traversal's order. Each [`BspFace`] keeps its vertices in a heap block of its own,
+/// allocated when the face was made (in model order, or at a split), so the
+/// traversal's order visits them at random addresses: on `many` (a million
+/// triangles) the load of the first vertex was a cache miss per face, about a third
+/// of the GP's time. The records and their vertices lie in face order, which is
+/// node order (a subtree's faces are one range), so the traversal reads them nearly
+/// in sequence.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FaceRecord {
+    /// Its plane (normal points to the front).
+    pub plane: Plane,
+    /// Its vertices: `record_vertices[start..end]`.
+    pub start: u32,
+    /// End of its vertices.
+    pub end: u32,
+    /// Material index.
+    pub material: u32,
+    /// Instance it came from.
+    pub instance: u32,
+    /// Face of the instance's model it came from.
+    pub face: u32,
+}
+
 /// The tree.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Bsp {
-    /// Nodes; the root is node 0 when there is one.
+    /// Nodes; the root is node 0 when there is one. The nodes are numbered in
+    /// depth-first order (front child first): a node's subtree is the nodes
+    /// `n..n + size`, and its faces one range of [`Bsp::faces`].
     pub nodes: Vec<BspNode>,
     /// Faces.
     pub faces: Vec<BspFace>,
+    /// The faces as the GP reads them ([`FaceRecord`]), numbered as [`Bsp::faces`].
+    pub records: Vec<FaceRecord>,
+    /// The records' vertices, in face order.
+    pub record_vertices: Vec<BspVertex>,
     /// Build statistics.
     pub stats: BspStats,
+    /// Per node: the faces of its subtree (its own and all below it).
+    subtree_faces: Vec<u32>,
     eps: f64,
 }
 
@@ -221,7 +256,49 @@ impl Bsp {
         bsp.renumber_faces(node_faces);
         bsp.stats.nodes = bsp.nodes.len();
         bsp.stats.faces = bsp.faces.len();
+        bsp.make_records();
         bsp
+    }
+
+    /// Copies the faces into [`Bsp::records`] and [`Bsp::record_vertices`], and
+    /// counts each subtree's faces.
+    fn make_records(&mut self) {
+        self.records = Vec::with_capacity(self.faces.len());
+        self.record_vertices = Vec::with_capacity(self.faces.iter().map(|f| f.vertices.len()).sum());
+        for f in &self.faces {
+            let start = self.record_vertices.len() as u32;
+            self.record_vertices.extend_from_slice(&f.vertices);
+            self.records.push(FaceRecord {
+                plane: f.plane,
+                start,
+                end: self.record_vertices.len() as u32,
+                material: f.material,
+                instance: f.instance,
+                face: f.face,
+            });
+        }
+        // Children come after their parent in depth-first order.
+        let mut count: Vec<u32> = self.nodes.iter().map(|n| n.faces.end - n.faces.start).collect();
+        for n in (0..self.nodes.len()).rev() {
+            let node = &self.nodes[n];
+            for c in [node.front, node.back] {
+                if c != NONE {
+                    count[n] += count[c as usize];
+                }
+            }
+        }
+        self.subtree_faces = count;
+    }
+
+    /// The vertices of a face's record.
+    #[inline]
+    pub fn record_vertices_of(&self, r: &FaceRecord) -> &[BspVertex] {
+        &self.record_vertices[r.start as usize..r.end as usize]
+    }
+
+    /// The faces in the subtree of `node` (its own and all below it).
+    pub fn subtree_faces(&self, node: u32) -> u32 {
+        self.subtree_faces[node as usize]
     }
 
     /// Numbers the faces in node order, so that each node's faces are a range and the
@@ -412,40 +489,93 @@ impl Bsp {
             visit(Visit::Guests(NONE, Slot::Straddle));
             return;
         }
-        enum Step {
-            Visit(u32),
-            Faces(u32),
-            Region(u32, Slot),
+        self.walk(
+            0,
+            eye,
+            |_| false,
+            |p| {
+                if let Piece::Visit(v) = p {
+                    visit(v)
+                }
+            },
+        );
+    }
+
+    /// The front-to-back order of the subtree of `node` alone: the same visits that
+    /// [`Bsp::traverse`] makes between entering and leaving that node.
+    pub fn traverse_subtree(&self, node: u32, eye: DVec3, mut visit: impl FnMut(Visit)) {
+        self.walk(
+            node,
+            eye,
+            |_| false,
+            |p| {
+                if let Piece::Visit(v) = p {
+                    visit(v)
+                }
+            },
+        );
+    }
+
+    /// The front-to-back order cut into pieces for several workers: every subtree
+    /// below the root with at most `max_faces` faces comes as one
+    /// [`Piece::Subtree`] (to be traversed by [`Bsp::traverse_subtree`]), the rest
+    /// as single visits. Traversing the subtrees in place gives [`Bsp::traverse`]'s
+    /// order exactly.
+    pub fn pieces(&self, eye: DVec3, max_faces: u32, mut piece: impl FnMut(Piece)) {
+        if self.nodes.is_empty() {
+            piece(Piece::Visit(Visit::Guests(NONE, Slot::Straddle)));
+            return;
         }
-        let mut stack = vec![Step::Visit(0)];
-        while let Some(step) = stack.pop() {
-            match step {
-                Step::Visit(n) => {
-                    let node = &self.nodes[n as usize];
-                    let eye_front = node.plane.distance(eye) >= 0.0;
-                    let (near, far, near_slot, far_slot) = if eye_front {
-                        (node.front, node.back, Slot::Front, Slot::Back)
-                    } else {
-                        (node.back, node.front, Slot::Back, Slot::Front)
-                    };
-                    // Pushed in reverse: near region, straddlers and faces, far region.
-                    match far {
-                        NONE => stack.push(Step::Region(n, far_slot)),
-                        c => stack.push(Step::Visit(c)),
-                    }
-                    stack.push(Step::Faces(n));
-                    match near {
-                        NONE => stack.push(Step::Region(n, near_slot)),
-                        c => stack.push(Step::Visit(c)),
-                    }
+        self.walk(0, eye, |n| n != 0 && self.subtree_faces[n as usize] <= max_faces, piece);
+    }
+
+    /// The traversal from `root`; a node for which `cut` is true is handed out
+    /// whole as [`Piece::Subtree`].
+    fn walk(&self, root: u32, eye: DVec3, cut: impl Fn(u32) -> bool, mut visit: impl FnMut(Piece)) {
+        // Every node: its near side, its straddling guests and faces, its far side.
+        // A node goes on the stack only while its near child's subtree is walked
+        // (with the side the eye is on); an empty near region is visited at once
+        // and the far child entered without a push (a third of the stack traffic
+        // of pushing all three steps per node).
+        let mut stack: Vec<(u32, bool)> = Vec::new();
+        let mut n = root;
+        'enter: loop {
+            // Enter node `n`.
+            let mut after = if cut(n) {
+                visit(Piece::Subtree(n));
+                None
+            } else {
+                let node = &self.nodes[n as usize];
+                let eye_front = node.plane.distance(eye) >= 0.0;
+                let (near, near_slot) = if eye_front { (node.front, Slot::Front) } else { (node.back, Slot::Back) };
+                if near != NONE {
+                    stack.push((n, eye_front));
+                    n = near;
+                    continue 'enter;
                 }
-                Step::Faces(n) => {
-                    visit(Visit::Guests(n, Slot::Straddle));
-                    for f in self.nodes[n as usize].faces.clone() {
-                        visit(Visit::Face(f));
-                    }
+                visit(Piece::Visit(Visit::Guests(n, near_slot)));
+                Some((n, eye_front))
+            };
+            // Leave the near side of `after` (or of the nodes on the stack).
+            loop {
+                let (m, eye_front) = match after.take() {
+                    Some(x) => x,
+                    None => match stack.pop() {
+                        Some(x) => x,
+                        None => return,
+                    },
+                };
+                let node = &self.nodes[m as usize];
+                visit(Piece::Visit(Visit::Guests(m, Slot::Straddle)));
+                for f in node.faces.clone() {
+                    visit(Piece::Visit(Visit::Face(f)));
                 }
-                Step::Region(n, slot) => visit(Visit::Guests(n, slot)),
+                let (far, far_slot) = if eye_front { (node.back, Slot::Back) } else { (node.front, Slot::Front) };
+                if far != NONE {
+                    n = far;
+                    continue 'enter;
+                }
+                visit(Piece::Visit(Visit::Guests(m, far_slot)));
             }
         }
     }
@@ -484,6 +614,15 @@ pub enum Visit {
     Face(u32),
     /// The place of the guests (moving models, light points) attached at a node.
     Guests(u32, Slot),
+}
+
+/// A piece of a front-to-back traversal cut for several workers ([`Bsp::pieces`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Piece {
+    /// One visit.
+    Visit(Visit),
+    /// The whole subtree of a node, in its own front-to-back order.
+    Subtree(u32),
 }
 
 /// Where, relative to a node, a moving model is emitted.

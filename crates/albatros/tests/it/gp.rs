@@ -1,7 +1,7 @@
 //! Tests of the geometric processor and the BSP: exact priority order, area kept by
 //! splitting, the frame list's invariants, the dump.
 
-use albatros::db::bsp::{polygon_area, Bsp, BspFace, BspVertex, Plane};
+use albatros::db::bsp::{polygon_area, Bsp, BspFace, BspVertex, Piece, Plane, Visit};
 use albatros::db::{builtin, Face, Instance, Material, Model, Scene, Screen, Vertex};
 use albatros::frame::{FrameList, FramePolygon};
 use albatros::gp::{self, Clipper, Database, GpConfig};
@@ -205,6 +205,49 @@ proptest! {
         bsp.traverse(DVec3::new(3.0, -50.0, 2.0), |v| if let albatros::db::bsp::Visit::Face(f) = v { seen[f as usize] += 1 });
         prop_assert!(seen.iter().all(|&s| s == 1));
     }
+}
+
+#[test]
+fn bsp_pieces_give_the_traversal_order_and_records_the_faces() {
+    // The pieces of several GPs, each subtree traversed on its own, in the order
+    // given: the whole traversal's order, for any cut size and eye.
+    let mut rng = Rng(5);
+    for seed in [3u64, 8, 21] {
+        let db = Database::new(random_scene(seed, 300, Screen { width: 200, height: 150 }));
+        let bsp = &db.bsp;
+        assert_eq!(bsp.records.len(), bsp.faces.len());
+        for (r, f) in bsp.records.iter().zip(&bsp.faces) {
+            assert_eq!(bsp.record_vertices_of(r), &f.vertices[..]);
+            assert_eq!((r.plane, r.material, r.instance, r.face), (f.plane, f.material, f.instance, f.face));
+        }
+        assert_eq!(bsp.subtree_faces(0) as usize, bsp.faces.len());
+        for _ in 0..6 {
+            let eye = DVec3::new(rng.range(-30.0, 30.0), rng.range(-20.0, 60.0), rng.range(-30.0, 30.0));
+            let mut whole = Vec::new();
+            bsp.traverse(eye, |v| whole.push(v));
+            for max_faces in [0, 1, 2, 7, 40, 299, u32::MAX] {
+                let mut cut = Vec::new();
+                let mut subtrees = 0;
+                bsp.pieces(eye, max_faces, |p| match p {
+                    Piece::Visit(v) => cut.push(v),
+                    Piece::Subtree(n) => {
+                        assert!(n != 0 && bsp.subtree_faces(n) <= max_faces);
+                        subtrees += 1;
+                        bsp.traverse_subtree(n, eye, |v| cut.push(v));
+                    }
+                });
+                assert!(cut == whole, "seed {seed}, eye {eye}, cut at {max_faces} faces");
+                assert!(max_faces < 2 || subtrees > 0);
+                let faces = whole.iter().filter(|v| matches!(v, Visit::Face(_))).count();
+                assert_eq!(faces, bsp.faces.len());
+            }
+        }
+    }
+    // No tree: one place for the guests.
+    let empty = Bsp::build(Vec::new());
+    let mut pieces = Vec::new();
+    empty.pieces(DVec3::ZERO, 4, |p| pieces.push(p));
+    assert_eq!(pieces, [Piece::Visit(Visit::Guests(albatros::db::bsp::NONE, albatros::db::bsp::Slot::Straddle))]);
 }
 
 #[test]
