@@ -225,6 +225,12 @@ pub fn snap_outline(outline: &[DVec2], s: &mut Vec<(ScreenFx, ScreenFx)>) -> Opt
         return None;
     }
     let sign = area2.signum();
+    // Nearly every outline is strictly convex already (every turn the area's
+    // way): then the passes below remove nothing, and each of their checks is the
+    // one made here (without their index arithmetic: a division per check).
+    if strictly_convex(s, sign) {
+        return Some(sign > 0);
+    }
     let mut i = 0;
     while s.len() >= 3 && i < s.len() {
         let n = s.len();
@@ -282,18 +288,156 @@ pub fn push_flat_polygon(out: &mut FrameList, outline: &[DVec2], color: Rgb, inv
     true
 }
 
+/// Twice the signed area (exact: snapped coordinates are below 2^31, so every
+/// product fits in `i64`, and the sum of a screen polygon's terms does too).
 fn shoelace(s: &[(ScreenFx, ScreenFx)]) -> i64 {
+    let Some(&last) = s.last() else { return 0 };
+    let term = |a: (ScreenFx, ScreenFx), b: (ScreenFx, ScreenFx)| {
+        i64::from(a.0 .0) * i64::from(b.1 .0) - i64::from(b.0 .0) * i64::from(a.1 .0)
+    };
+    // Integer sums: the order of the terms does not matter.
+    s.windows(2).map(|w| term(w[0], w[1])).sum::<i64>() + term(last, s[0])
+}
+
+/// Whether every corner of the closed outline `s` turns the way of `sign` (the
+/// sign of its area): the check of [`snap_outline`]'s passes at every vertex.
+fn strictly_convex(s: &[(ScreenFx, ScreenFx)], sign: i64) -> bool {
     let n = s.len();
-    (0..n)
-        .map(|i| {
-            let (a, b) = (s[i], s[(i + 1) % n]);
-            i64::from(a.0 .0) * i64::from(b.1 .0) - i64::from(b.0 .0) * i64::from(a.1 .0)
-        })
-        .sum()
+    let (mut a, mut b) = (s[n - 2], s[n - 1]);
+    for &c in s {
+        if cross(a, b, c) * sign <= 0 {
+            return false;
+        }
+        (a, b) = (b, c);
+    }
+    true
 }
 
 fn cross(a: (ScreenFx, ScreenFx), b: (ScreenFx, ScreenFx), c: (ScreenFx, ScreenFx)) -> i64 {
     let (abx, aby) = (i64::from(b.0 .0 - a.0 .0), i64::from(b.1 .0 - a.1 .0));
     let (bcx, bcy) = (i64::from(c.0 .0 - b.0 .0), i64::from(c.1 .0 - b.1 .0));
     abx * bcy - aby * bcx
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// [`snap_outline`] as first written: the passes alone, with no convexity
+    /// check before them.
+    fn snap_outline_plain(outline: &[DVec2], s: &mut Vec<(ScreenFx, ScreenFx)>) -> Option<bool> {
+        s.clear();
+        for p in outline {
+            let q = (ScreenFx::from_f64(p.x), ScreenFx::from_f64(p.y));
+            if s.last() != Some(&q) {
+                s.push(q);
+            }
+        }
+        while s.len() > 1 && s.first() == s.last() {
+            s.pop();
+        }
+        if s.len() < 3 {
+            return None;
+        }
+        let n = s.len();
+        let area2: i64 = (0..n)
+            .map(|i| {
+                let (a, b) = (s[i], s[(i + 1) % n]);
+                i64::from(a.0 .0) * i64::from(b.1 .0) - i64::from(b.0 .0) * i64::from(a.1 .0)
+            })
+            .sum();
+        if area2 == 0 {
+            return None;
+        }
+        let sign = area2.signum();
+        let mut i = 0;
+        while s.len() >= 3 && i < s.len() {
+            let n = s.len();
+            let (a, b, c) = (s[(i + n - 1) % n], s[i], s[(i + 1) % n]);
+            if cross(a, b, c) * sign <= 0 {
+                s.remove(i);
+                i = i.saturating_sub(1);
+            } else {
+                i += 1;
+            }
+        }
+        let mut changed = true;
+        while changed && s.len() >= 3 {
+            changed = false;
+            let n = s.len();
+            for k in 0..n {
+                if cross(s[(k + n - 1) % n], s[k], s[(k + 1) % n]) * sign <= 0 {
+                    s.remove(k);
+                    changed = true;
+                    break;
+                }
+            }
+        }
+        (s.len() >= 3 && shoelace(s) != 0).then_some(sign > 0)
+    }
+
+    /// A small xorshift generator (the tests need no better).
+    struct Rng(u64);
+
+    impl Rng {
+        fn next(&mut self) -> u64 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            self.0
+        }
+        fn range(&mut self, lo: f64, hi: f64) -> f64 {
+            lo + (hi - lo) * (self.next() >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    #[test]
+    fn snap_outline_is_the_plain_definition() {
+        let mut rng = Rng(0x5EED_0F_5A4B);
+        let (mut fast, mut plain) = (Vec::new(), Vec::new());
+        let mut outcomes = [0usize; 3];
+        for case in 0..200_000 {
+            let n = 3 + (rng.next() % 6) as usize;
+            // Sizes from a hundredth of a pixel (everything snaps together) to a
+            // screen; some outlines convex, some not, some with repeated points and
+            // nearly collinear runs.
+            let scale = [0.01, 0.1, 1.0, 8.0, 500.0][case % 5];
+            let (cx, cy) = (rng.range(0.0, 1920.0), rng.range(0.0, 1080.0));
+            let mut outline: Vec<DVec2> = if case % 3 == 0 {
+                (0..n).map(|_| DVec2::new(cx + rng.range(-scale, scale), cy + rng.range(-scale, scale))).collect()
+            } else {
+                // Around a circle (convex), either way round.
+                let dir = if case % 2 == 0 { 1.0 } else { -1.0 };
+                let mut angles: Vec<f64> = (0..n).map(|_| rng.range(0.0, std::f64::consts::TAU)).collect();
+                angles.sort_by(f64::total_cmp);
+                angles.iter().map(|a| DVec2::new(cx + scale * a.cos(), cy + dir * scale * a.sin())).collect()
+            };
+            match rng.next() % 4 {
+                0 => {
+                    let k = (rng.next() as usize) % outline.len();
+                    outline.insert(k, outline[k]);
+                }
+                1 => {
+                    // A point on the middle of an edge (collinear after snapping, or
+                    // nearly).
+                    let k = (rng.next() as usize) % outline.len();
+                    let m = (outline[k] + outline[(k + 1) % outline.len()]) * 0.5;
+                    outline.insert(k + 1, m + DVec2::splat(rng.range(-0.003, 0.003)));
+                }
+                _ => {}
+            }
+            let a = snap_outline(&outline, &mut fast);
+            let b = snap_outline_plain(&outline, &mut plain);
+            assert_eq!(a, b, "{outline:?}");
+            if a.is_some() {
+                assert_eq!(fast, plain, "{outline:?}");
+            }
+            outcomes[match a {
+                None => 0,
+                Some(false) => 1,
+                Some(true) => 2,
+            }] += 1;
+        }
+        assert!(outcomes.iter().all(|&k| k > 1000), "every outcome tested: {outcomes:?}");
+    }
 }
