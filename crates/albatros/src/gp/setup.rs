@@ -151,11 +151,14 @@ impl Setup {
         let estart = out.edges.len() as u32;
         let inv_z32 = FracLin { a: inv_z[0] as f32, b: inv_z[1] as f32, c: inv_z[2] as f32 };
         let n = self.snapped.len();
-        for i in 0..n {
-            let (x, y) = (self.snapped[i].0.to_f32(), self.snapped[i].1.to_f32());
+        out.vertices.reserve(n);
+        out.edges.reserve(n);
+        for (i, &a) in self.snapped.iter().enumerate() {
+            let (x, y) = (a.0.to_f32(), a.1.to_f32());
             out.vertices.push(ScreenVertex { x, y, inv_w: inv_z32.eval(x, y) });
-            let e = EdgeCode::new(self.snapped[i], self.snapped[(i + 1) % n], inside_positive, self.root_side)
-                .expect("snapped vertices are distinct");
+            // The next vertex, round the outline (no `% n`: a division per edge).
+            let b = if i + 1 < n { self.snapped[i + 1] } else { self.snapped[0] };
+            let e = EdgeCode::new(a, b, inside_positive, self.root_side).expect("snapped vertices are distinct");
             out.edges.push(e);
         }
         out.polygons.push(FramePolygon {
@@ -179,13 +182,17 @@ impl Setup {
         let n = vs.len();
         let mut best = (0.0, 0, 1, 2);
         // The widest triangle: first vertex against the farthest pair is enough for
-        // convex polygons, but n is small, so try all pairs from a few anchors.
-        for i in 0..n.min(4) {
-            for j in i + 1..n {
-                for k in j + 1..n {
-                    let a = (vs[j].position - vs[i].position).cross(vs[k].position - vs[i].position).length();
-                    if a > best.0 {
-                        best = (a, i, j, k);
+        // convex polygons, but n is small, so try all pairs from a few anchors. A
+        // triangle has only itself (the search would pick (0, 1, 2) whatever its
+        // area, even NaN): no search.
+        if n > 3 {
+            for i in 0..n.min(4) {
+                for j in i + 1..n {
+                    for k in j + 1..n {
+                        let a = (vs[j].position - vs[i].position).cross(vs[k].position - vs[i].position).length();
+                        if a > best.0 {
+                            best = (a, i, j, k);
+                        }
                     }
                 }
             }
