@@ -532,50 +532,54 @@ impl Bsp {
     /// The traversal from `root`; a node for which `cut` is true is handed out
     /// whole as [`Piece::Subtree`].
     fn walk(&self, root: u32, eye: DVec3, cut: impl Fn(u32) -> bool, mut visit: impl FnMut(Piece)) {
+        /// A node whose near side is being walked: what is left of it.
+        struct Rest {
+            node: u32,
+            faces: std::ops::Range<u32>,
+            far: u32,
+            far_slot: Slot,
+        }
         // Every node: its near side, its straddling guests and faces, its far side.
-        // A node goes on the stack only while its near child's subtree is walked
-        // (with the side the eye is on); an empty near region is visited at once
-        // and the far child entered without a push (a third of the stack traffic
-        // of pushing all three steps per node).
-        let mut stack: Vec<(u32, bool)> = Vec::new();
+        // A node goes on the stack only while its near child's subtree is walked,
+        // with what is left of it (so that a large subtree's walk does not have to
+        // read the node again from memory); an empty near region is visited at once
+        // and the far child entered without a push.
+        let mut stack: Vec<Rest> = Vec::new();
         let mut n = root;
         'enter: loop {
             // Enter node `n`.
-            let mut after = if cut(n) {
+            let mut rest = if cut(n) {
                 visit(Piece::Subtree(n));
                 None
             } else {
                 let node = &self.nodes[n as usize];
                 let eye_front = node.plane.distance(eye) >= 0.0;
-                let (near, near_slot) = if eye_front { (node.front, Slot::Front) } else { (node.back, Slot::Back) };
+                let (near, near_slot, far, far_slot) = if eye_front {
+                    (node.front, Slot::Front, node.back, Slot::Back)
+                } else {
+                    (node.back, Slot::Back, node.front, Slot::Front)
+                };
+                let rest = Rest { node: n, faces: node.faces.clone(), far, far_slot };
                 if near != NONE {
-                    stack.push((n, eye_front));
+                    stack.push(rest);
                     n = near;
                     continue 'enter;
                 }
                 visit(Piece::Visit(Visit::Guests(n, near_slot)));
-                Some((n, eye_front))
+                Some(rest)
             };
-            // Leave the near side of `after` (or of the nodes on the stack).
+            // Leave the near side of `rest` (or of the nodes on the stack).
             loop {
-                let (m, eye_front) = match after.take() {
-                    Some(x) => x,
-                    None => match stack.pop() {
-                        Some(x) => x,
-                        None => return,
-                    },
-                };
-                let node = &self.nodes[m as usize];
-                visit(Piece::Visit(Visit::Guests(m, Slot::Straddle)));
-                for f in node.faces.clone() {
+                let Some(Rest { node, faces, far, far_slot }) = rest.take().or_else(|| stack.pop()) else { return };
+                visit(Piece::Visit(Visit::Guests(node, Slot::Straddle)));
+                for f in faces {
                     visit(Piece::Visit(Visit::Face(f)));
                 }
-                let (far, far_slot) = if eye_front { (node.back, Slot::Back) } else { (node.front, Slot::Front) };
                 if far != NONE {
                     n = far;
                     continue 'enter;
                 }
-                visit(Piece::Visit(Visit::Guests(m, far_slot)));
+                visit(Piece::Visit(Visit::Guests(node, far_slot)));
             }
         }
     }
