@@ -675,7 +675,7 @@ impl FrameBuilder<'_> {
             Visit::Face(i) => {
                 let bsp = &f.db.bsp;
                 let r = &bsp.records[i as usize];
-                self.face(r, bsp.record_vertices_of(r), f.view.world_to_eye, f.view.position, f.sun_world);
+                self.face(r, bsp.record_vertices_of(r), &f.view.world_to_eye, f.view.position, f.sun_world);
             }
             Visit::Guests(n, slot) => {
                 if self.places.get(n as usize).is_none_or(|&p| p >> slot as u8 & 1 != 0) {
@@ -721,14 +721,14 @@ impl FrameBuilder<'_> {
         m.bsp.traverse(eye_model, |step| {
             if let Visit::Face(f) = step {
                 let r = &m.bsp.records[f as usize];
-                self.face(r, m.bsp.record_vertices_of(r), to_eye, eye_model, sun_model);
+                self.face(r, m.bsp.record_vertices_of(r), &to_eye, eye_model, sun_model);
             }
         });
     }
 
     /// Transforms, culls, clips and sets up one face. `to_eye` takes the face's
     /// coordinates to the eye's; `eye_local` is the eye in the face's coordinates.
-    fn face(&mut self, face: &FaceRecord, vertices: &[BspVertex], to_eye: DMat4, eye_local: DVec3, sun: DVec3) {
+    fn face(&mut self, face: &FaceRecord, vertices: &[BspVertex], to_eye: &DMat4, eye_local: DVec3, sun: DVec3) {
         let Some(instance_class) = self.f.class[face.instance as usize] else { return };
         let counters = &mut self.counters;
         counters.faces_in += 1;
@@ -743,23 +743,29 @@ impl FrameBuilder<'_> {
         let env = &db.scene.env;
         let scratch = &mut self.scratch;
         scratch.eye.clear();
+        scratch.eye.reserve(vertices.len());
         let mut and = 0x1Fu8;
         let mut or = 0u8;
+        // The face's and the environment's constants, out of the vertex loop.
+        let smooth = material.shading == crate::db::Shading::Smooth;
+        let emissive = material.emissive;
+        let ambient = f64::from(env.ambient);
+        let pb = f64::from(env.background_brightness);
+        let attenuation = env.attenuation;
         for v in vertices {
             let p = to_eye.transform_point3(v.position);
             let code = view.outcode(p);
             and &= code;
             or |= code;
-            let normal = match material.shading {
-                crate::db::Shading::Smooth => v.normal.as_dvec3(),
-                crate::db::Shading::Flat => face.plane.normal,
+            let cos_a = if emissive {
+                1.0
+            } else {
+                let normal = if smooth { v.normal.as_dvec3() } else { face.plane.normal };
+                ambient + (1.0 - ambient) * normal.dot(sun).max(0.0)
             };
-            let ambient = f64::from(env.ambient);
-            let cos_a = if material.emissive { 1.0 } else { ambient + (1.0 - ambient) * normal.dot(sun).max(0.0) };
             // P5: P' = Pb + (P cos a - Pb) exp(-beta z). With no attenuation the
             // factor is exp(0) = 1 exactly (z is finite), and not computed.
-            let pb = f64::from(env.background_brightness);
-            let fade = if env.attenuation == 0.0 { 1.0 } else { (-f64::from(env.attenuation) * p.z).exp() };
+            let fade = if attenuation == 0.0 { 1.0 } else { (-f64::from(attenuation) * p.z).exp() };
             let intensity = pb + (f64::from(v.intensity) * cos_a - pb) * fade;
             scratch.eye.push(EyeVertex { position: p, intensity });
         }
