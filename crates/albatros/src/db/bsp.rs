@@ -23,6 +23,11 @@
 //! its sphere straddles (or to the leaf region it lies in) and emitted there as a whole
 //! before that node's faces, ordered internally by its own BSP.
 //!
+//! Nodes are numbered depth first, so a subtree is a range of nodes and of faces:
+//! [`Bsp::pieces`] cuts the order into whole subtrees that several GPs traverse
+//! on their own ([`Bsp::traverse_subtree`]), and [`FaceRecord`]s keep the faces
+//! the GP reads every frame in that order.
+//!
 //! **Invariant**: for non-intersecting faces, a face that can hide another from the
 //! eye is emitted before it.
 

@@ -390,8 +390,9 @@ pub fn frame(db: &Database, eye: &Eye, screen: Screen, config: &GpConfig, counte
     out
 }
 
-/// The GP's working memory kept from frame to frame: the priority order, the
-/// stretches' frame lists and the threads of the several GPs. Reusing it (and the
+/// The GP's working memory kept from frame to frame: the traversal's pieces and
+/// tasks, the guests' places, the stretches' frame lists and the threads of the
+/// several GPs. Reusing it (and the
 /// output list, one half of P1's double-buffered frame memory) means a frame
 /// allocates nothing once the lists have grown to the scene's size.
 #[derive(Default)]
@@ -430,8 +431,9 @@ impl GpMemory {
 /// Builds the frame list of one frame into `out` (cleared first, its allocations
 /// kept), with working memory `memory` kept between frames.
 ///
-/// With `config.threads > 1` the priority order is cut into stretches that several
-/// geometry processors set up in parallel (P5's several GPs); their frame lists are
+/// With `config.threads > 1` the priority order is cut into stretches (whole
+/// subtrees of the BSP and the visits above them) that several geometry processors
+/// traverse and set up in parallel (P5's several GPs); their frame lists are
 /// joined in order, so the result is the same, byte for byte.
 pub fn frame_into(
     db: &Database,
