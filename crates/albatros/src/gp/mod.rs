@@ -379,7 +379,7 @@ struct FrameBuilder<'a> {
 /// stretch of the priority order, whole subtrees of the BSP traversed by the GP
 /// that sets them up, so that the traversal too runs in parallel: on `terrain` it
 /// was a tenth of the GP's work, done on one thread before the others started.
-const FACES_PER_TASK: u32 = 4096;
+const FACES_PER_TASK: u32 = 2048;
 
 /// Builds the frame list of one frame: the GP's whole job (a fresh list; see
 /// [`frame_into`] to reuse one frame to frame).
