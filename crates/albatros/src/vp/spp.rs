@@ -187,13 +187,13 @@ impl SubpixelProcessors {
             };
             let vertical = e.tg == Tg::Vertical;
             // q on the five pixel lines of the cell (rows for a vertical edge, columns
-            // for a horizontal one), relative to the cell's first pixel column (row);
-            // the next pixel across is 8 eighths further, so its q is 8 less. V is
-            // exact (additions of the slope), so five roundings serve 16 pixels.
-            let base = i64::from(if vertical { frag.px } else { frag.py }) << EDGE_FRAC_BITS;
+            // for a horizontal one), relative to the cell's first pixel column (row),
+            // as V1 is; the next pixel across is 8 eighths further, so its q is 8
+            // less. V is exact (additions of the slope), so five roundings serve 16
+            // pixels.
             let mut q = [0i32; 5];
             for (k, qk) in q.iter_mut().enumerate() {
-                *qk = round_q(a.v1.0 + e.slope.0 * k as i64 - base);
+                *qk = round_q(a.v1.0 + e.slope.0 * k as i64);
             }
             // The edge's sets, a word per pixel line along it (LR = 0: complements).
             let part = self.row_table.part(e.tg);
@@ -669,11 +669,8 @@ mod tests {
         for a in frag.active {
             let e = &edges[a.edge as usize];
             let vertex = if spp.vertex_exact { vertex_pixels(&e.exact, frag.px, frag.py) } else { 0 };
-            let base = match e.tg {
-                Tg::Vertical => i64::from(frag.px),
-                Tg::Horizontal => i64::from(frag.py),
-            } << EDGE_FRAC_BITS;
-            let q: [i32; 5] = std::array::from_fn(|k| round_q(a.v1.0 + e.slope.0 * k as i64 - base));
+            // V1 relative to the cell's first pixel column (row), as the GQ gives it.
+            let q: [i32; 5] = std::array::from_fn(|k| round_q(a.v1.0 + e.slope.0 * k as i64));
             let part = table.half(e.tg, e.lr);
             let mut sets = match e.tg {
                 Tg::Vertical => edge_sets::<true>(part, &q),
@@ -741,10 +738,7 @@ mod tests {
             let active: Vec<ActiveEdge> = edges
                 .iter()
                 .enumerate()
-                .map(|(i, e)| {
-                    let t0 = i64::from(if e.tg == Tg::Vertical { py } else { px });
-                    ActiveEdge { edge: i as u32, v1: e.v_at(t0), v2: e.v_at(t0 + 4) }
-                })
+                .map(|(i, e)| ActiveEdge::at_cell(i as u32, e, i64::from(px), i64::from(py), 4))
                 .collect();
             let frag = Fragment { px, py, active: &active };
             let want = fragment_code_plain(&spp, &frag, &edges);
