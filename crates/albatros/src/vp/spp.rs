@@ -454,15 +454,19 @@ fn exact_into_sse2(line: &ExactLine, lr: bool, px: u32, py: u32, near: u16, vert
     let on_line = line.a > 0 || (line.a == 0 && line.b > 0);
     let threshold = i64::from(!on_line);
     let flip = if lr { 0 } else { 0xFFFF };
+    // E at the first centre of the cell's first pixel; a pixel further is `SNAP_ONE a`
+    // (`SNAP_ONE b`) more. (Every term is below 2^48: no overflow.)
+    let x0 = i64::from(px) * i64::from(SNAP_ONE) + HALF_SUB;
+    let y0 = i64::from(py) * i64::from(SNAP_ONE) + HALF_SUB;
+    let e_cell = line.a * x0 + line.b * y0 + line.c - threshold;
+    let (pixel_x, pixel_y) = (line.a * i64::from(SNAP_ONE), line.b * i64::from(SNAP_ONE));
     let mut near = near;
     while near != 0 {
         let pixel = near.trailing_zeros();
         near &= near - 1;
-        let x0 = i64::from(px + (pixel & 3)) * i64::from(SNAP_ONE) + HALF_SUB;
-        let y0 = i64::from(py + (pixel >> 2)) * i64::from(SNAP_ONE) + HALF_SUB;
-        let e0 = line.a * x0 + line.b * y0 + line.c - threshold;
+        let e0 = e_cell + pixel_x * i64::from(pixel & 3) + pixel_y * i64::from(pixel >> 2);
         // A centre is off the greater side when its offset is below -E0.
-        let t = _mm_set1_epi32(e0.saturating_neg().clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32);
+        let t = _mm_set1_epi32((-e0).clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32);
         let (l0, l1) = (_mm_cmpgt_epi32(t, row0), _mm_cmpgt_epi32(t, row1));
         let (l2, l3) = (_mm_cmpgt_epi32(t, row2), _mm_cmpgt_epi32(t, row3));
         let less = _mm_movemask_epi8(_mm_packs_epi16(_mm_packs_epi32(l0, l1), _mm_packs_epi32(l2, l3))) as u16;
