@@ -759,7 +759,7 @@ mod tests {
     /// saturated compare) and through its subpixel centres (ties).
     #[test]
     fn exact_sets_in_32_bits_are_exact_set() {
-        let mut next = xorshift(0x5EED_0F_E1A5_7E57);
+        let mut next = xorshift(0x005E_ED0F_E1A5_7E57);
         let one = i64::from(SNAP_ONE);
         for k in 0..40_000 {
             let limit = [2_000, 1 << 16, (1 << 22) - 1][k % 3];
@@ -805,9 +805,9 @@ mod tests {
         for _ in 0..1000 {
             let w: [u64; 4] = std::array::from_fn(|_| next(i64::MAX) as u64 ^ (next(i64::MAX) as u64) << 1);
             let t = transpose_words(w);
-            for i in 0..4 {
-                for j in 0..4 {
-                    assert_eq!((t[j] >> (16 * i)) as u16, (w[i] >> (16 * j)) as u16);
+            for (i, &row) in w.iter().enumerate() {
+                for (j, &column) in t.iter().enumerate() {
+                    assert_eq!((column >> (16 * i)) as u16, (row >> (16 * j)) as u16);
                 }
             }
             assert_eq!(transpose_words(t), w);
