@@ -57,7 +57,7 @@ impl ScreenFx {
 /// A value of V: pixels as `i64` with [`EDGE_FRAC_BITS`] fractional bits.
 ///
 /// Bit layout: `[63..32]` signed integer pixels, `[31..0]` fraction.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
 pub struct EdgeCoord(pub i64);
 
 impl EdgeCoord {

@@ -32,7 +32,7 @@ use crate::model::stats::Counters;
 /// a horizontal), relative to the cell's first border across V (its left border for
 /// a vertical edge, its top for a horizontal one): the GQ's comparisons then need no
 /// cell origin, and a child's values are its parent's less half a cell or not.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ActiveEdge {
     /// Index into the polygon's edge list.
     pub edge: u32,
@@ -313,28 +313,9 @@ pub struct CellProcessors {
     /// The share the memories' cleared states were made for.
     cleared_share: Share,
     /// Active-edge lists, four per level: a cell's children's lists are
-    /// `lists[level + 1]`'s, filled in one pass over the cell's edges; the starting
-    /// cell's list is `lists[level]`'s first.
-    lists: Vec<EdgeLists>,
-    /// Entries of every list ([`EdgeLists`]): at least the edges of the polygon.
-    list_room: usize,
-}
-
-/// One level's four active-edge lists (a cell's four children's), written by index:
-/// each list has room for every edge of the polygon, and `len` says how many are in
-/// use.
-#[derive(Clone, Debug, Default)]
-struct EdgeLists {
-    edges: [Vec<ActiveEdge>; 4],
-    len: [usize; 4],
-}
-
-impl EdgeLists {
-    /// The edges of list `c`.
-    #[inline]
-    fn list(&self, c: usize) -> &[ActiveEdge] {
-        &self.edges[c][..self.len[c]]
-    }
+    /// `lists[level + 1][child]`, filled in one pass over the cell's edges; the
+    /// starting cell's list is `lists[level][0]`.
+    lists: Vec<[Vec<ActiveEdge>; 4]>,
 }
 
 /// A level-L cell handed to the SPPs, with the edges that cross it.
@@ -388,8 +369,7 @@ impl CellProcessors {
             recorder: None,
             memories,
             cleared_share: Share::WHOLE,
-            lists: vec![EdgeLists::default(); root_level as usize + 1],
-            list_room: 0,
+            lists: vec![Default::default(); root_level as usize + 1],
         }
     }
 
@@ -536,24 +516,13 @@ impl CellProcessors {
         }
         let side = i64::from(self.side(start.level));
         let (x0, y0) = (i64::from(start.x) * side, i64::from(start.y) * side);
-        // Every list has room for all the polygon's edges: the GQ writes its lists
-        // by index, with no growth check per edge (they grow only for a polygon
-        // with more edges than any before).
-        if poly.edges.len() > self.list_room {
-            self.list_room = poly.edges.len();
-            for l in &mut self.lists {
-                for list in &mut l.edges {
-                    list.resize(self.list_room, ActiveEdge::default());
-                }
-            }
-        }
-        let lists = &mut self.lists[start.level as usize];
+        let list = &mut self.lists[start.level as usize][0];
+        list.clear();
         for (i, e) in poly.edges.iter().enumerate() {
-            lists.edges[0][i] = ActiveEdge::at_cell(i as u32, e, x0, y0, side);
+            list.push(ActiveEdge::at_cell(i as u32, e, x0, y0, side));
         }
-        lists.len[0] = poly.edges.len();
         if start.level == self.root_level {
-            spp(Fragment { px: start.x * 4, py: start.y * 4, active: self.lists[start.level as usize].list(0) });
+            spp(Fragment { px: start.x * 4, py: start.y * 4, active: &self.lists[start.level as usize][0] });
             return;
         }
         self.split::<STATS>(start, start_z, 0, poly, counters, spp);
@@ -580,27 +549,27 @@ impl CellProcessors {
         let mut ci_all = 0xFu8;
         let mut cri_all = 0xFu8;
         let (lo, hi) = self.lists.split_at_mut(k + 1);
-        let active = lo[k].list(list);
+        let active = &lo[k][list];
         let children = &mut hi[0];
-        let mut lens = [0usize; 4];
+        for c in children.iter_mut() {
+            c.clear();
+        }
         for a in active {
             let code = edge_code(a.v1.0, a.v2.0, half, a.vertical, a.lr);
             ci_all &= code.ci;
             cri_all &= code.cri;
             let mut crossed = code.cri & !code.ci;
             while crossed != 0 {
-                let c = crossed.trailing_zeros() as usize & 3;
+                let c = crossed.trailing_zeros() as usize;
                 crossed &= crossed - 1;
                 // The child's place along V's lines (its half of the stretch) and
                 // across them (its V origin half a cell further or not).
                 let (along, across) = if a.vertical { (c >> 1, c & 1) } else { (c & 1, c >> 1) };
                 let (v1, v2) = if along == 0 { (a.v1.0, code.vm) } else { (code.vm, a.v2.0) };
                 let shift = half * across as i64;
-                children.edges[c][lens[c]] = ActiveEdge { v1: EdgeCoord(v1 - shift), v2: EdgeCoord(v2 - shift), ..*a };
-                lens[c] += 1;
+                children[c].push(ActiveEdge { v1: EdgeCoord(v1 - shift), v2: EdgeCoord(v2 - shift), ..*a });
             }
         }
-        children.len = lens;
         // The mask memory of the children's level.
         // Bits are only ever set on levels in use; cells wholly off the screen always
         // read as covered (pre-masked), whatever the mode.
@@ -632,7 +601,7 @@ impl CellProcessors {
                 spp(Fragment {
                     px: child_cell.x * 4,
                     py: child_cell.y * 4,
-                    active: self.lists[child_level as usize].list(c as usize),
+                    active: &self.lists[child_level as usize][c as usize],
                 });
             } else {
                 self.split::<STATS>(child_cell, 4 * z + c as usize, c as usize, poly, counters, spp);
@@ -660,28 +629,8 @@ struct EdgeChildCodes {
 /// (its reading of the high bits of V one LSB lower) and "at or beyond its far
 /// border" as `min >= (across + 1) half`. With LR = 1 the first is IN and the second
 /// OUT; with LR = 0 the other way round. No branch and no table address.
-///
-/// On x86-64 the two halves' comparisons run side by side in SSE4.2's 64-bit lanes
-/// ([`edge_code_sse42`], the same bits, tested); elsewhere [`edge_code_plain`].
 #[inline(always)]
 fn edge_code(d1: i64, d2: i64, half: i64, vertical: bool, lr: bool) -> EdgeChildCodes {
-    #[cfg(target_arch = "x86_64")]
-    if std::is_x86_feature_detected!("sse4.2") {
-        // SAFETY: `edge_code_sse42` only needs SSE4.2, which the processor was just
-        // found to have (with the workspace's x86-64-v2 target the check is a
-        // constant and the call is inlined).
-        #[allow(unsafe_code, reason = "a function compiled for SSE4.2, after detection")]
-        unsafe {
-            return edge_code_sse42(d1, d2, half, vertical, lr);
-        }
-    }
-    edge_code_plain(d1, d2, half, vertical, lr)
-}
-
-/// [`edge_code`] in plain scalar arithmetic: the definition the SIMD copy is tested
-/// against.
-#[inline(always)]
-fn edge_code_plain(d1: i64, d2: i64, half: i64, vertical: bool, lr: bool) -> EdgeChildCodes {
     let dm = (d1 + d2) >> 1;
     let (lo0, hi0) = (d1.min(dm), d1.max(dm));
     let (lo1, hi1) = (dm.min(d2), dm.max(d2));
@@ -696,53 +645,6 @@ fn edge_code_plain(d1: i64, d2: i64, half: i64, vertical: bool, lr: bool) -> Edg
         | u8::from(lo1 >= 2 * half) << 3;
     let (inside, outside) = if lr { (before, after) } else { (after, before) };
     EdgeChildCodes { ci: inside, cri: !outside & 0xF, vm: dm }
-}
-
-/// [`edge_code`] with the two halves of the edge's stretch in the two 64-bit lanes of
-/// SSE registers: lane `along` holds `(V1, Vm)` or `(Vm, V2)`; one compare orders
-/// each pair, four compare its max and min with `0`, `half` and `2 half`, and the
-/// lanes' sign bits are the children's bits (a vertical edge's rows are along V, so
-/// its bits are transposed into `dx + 2 dy`).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "sse4.2")]
-#[inline]
-fn edge_code_sse42(d1: i64, d2: i64, half: i64, vertical: bool, lr: bool) -> EdgeChildCodes {
-    use std::arch::x86_64::{
-        _mm_blendv_epi8, _mm_castsi128_pd, _mm_cmpgt_epi64, _mm_movemask_pd, _mm_set1_epi64x, _mm_set_epi64x,
-        _mm_setzero_si128,
-    };
-    let dm = (d1 + d2) >> 1;
-    // Lane 0: the first half of the stretch, lane 1 the second.
-    let first = _mm_set_epi64x(dm, d1);
-    let second = _mm_set_epi64x(d2, dm);
-    let swap = _mm_cmpgt_epi64(first, second);
-    let hi = _mm_blendv_epi8(second, first, swap);
-    let lo = _mm_blendv_epi8(first, second, swap);
-    let h = _mm_set1_epi64x(half);
-    let mask = |v| _mm_movemask_pd(_mm_castsi128_pd(v)) as u8;
-    // Bit `along` of each: the line not at or before the near border of the child
-    // across = 0 (max > 0), = 1 (max > half); not at or beyond the far border of the
-    // child across = 0 (min < half), = 1 (min < 2 half).
-    let past0 = mask(_mm_cmpgt_epi64(hi, _mm_setzero_si128()));
-    let past1 = mask(_mm_cmpgt_epi64(hi, h));
-    let short0 = mask(_mm_cmpgt_epi64(h, lo));
-    let short1 = mask(_mm_cmpgt_epi64(_mm_set1_epi64x(2 * half), lo));
-    // Bit `along + 2 across`: a horizontal edge's children (along = dx); transposed
-    // for a vertical edge (along = dy).
-    let (not_before, not_after) = (past0 | past1 << 2, short0 | short1 << 2);
-    let (not_before, not_after) =
-        if vertical { (transpose_nibble(not_before), transpose_nibble(not_after)) } else { (not_before, not_after) };
-    let (before, after) = (!not_before & 0xF, !not_after & 0xF);
-    let (inside, outside) = if lr { (before, after) } else { (after, before) };
-    EdgeChildCodes { ci: inside, cri: !outside & 0xF, vm: dm }
-}
-
-/// A nibble of four children's bits transposed: bits 1 and 2 swapped (`dx + 2 dy` to
-/// `dy + 2 dx`).
-#[inline(always)]
-fn transpose_nibble(n: u8) -> u8 {
-    let swap = (n >> 1 ^ n >> 2) & 1;
-    n ^ (swap << 1 | swap << 2)
 }
 
 /// Appends the four children of `cell` to a recorder with what the GQ decided about
@@ -789,19 +691,6 @@ mod tests {
             }
         }
         assert_eq!(morton(0xFFFF, 0xFFFF), u32::MAX as usize);
-    }
-
-    #[test]
-    fn transpose_nibble_swaps_dx_and_dy() {
-        for n in 0..16u8 {
-            let mut want = 0;
-            for c in 0..4 {
-                if n >> c & 1 == 1 {
-                    want |= 1 << ((c & 1) << 1 | c >> 1);
-                }
-            }
-            assert_eq!(transpose_nibble(n), want, "{n:#06b}");
-        }
     }
 
     /// The memory's cells, one by one and as nibbles of children, and its pre-masks:
