@@ -5,32 +5,64 @@
 //! - A cell of level `k` has side `4 * 2^(L-k)` pixels; level 0 is the root covering
 //!   the screen, level `L` cells are 4 x 4 pixels and go to the SPPs.
 //! - For each active (crossing) edge the GQ forms `(V1 + V2) / 2` by one addition and a
-//!   shift, looks up the edge's CI/CRI codes in the [`GqRom`] with the high bits of
-//!   V1, (V1+V2)/2, V2, and combines them by P1 eq. (2):
-//!   `CRI = !M & AND CRI_i`, `CI = !M & AND CI_i`, `CR = CRI & !CI`, `M |= CI`.
-//! - Children's V1, V2 are the parent's V1 and the midpoint, or the midpoint and V2:
-//!   no multiplication below the starting cell.
+//!   shift, finds the edge's CI/CRI codes (those of the [`GqRom`](super::tables::GqRom) with the high bits
+//!   of V1, (V1+V2)/2, V2, read by comparisons: [`edge_code`]), and combines them by
+//!   P1 eq. (2): `CRI = !M & AND CRI_i`, `CI = !M & AND CI_i`, `CR = CRI & !CI`,
+//!   `M |= CI`.
+//! - Children's V1, V2 are the parent's V1 and the midpoint, or the midpoint and V2,
+//!   less half a cell for the children further along V: no multiplication below the
+//!   starting cell. Values are kept relative to the cell ([`ActiveEdge`]).
 //! - Values are exact (see [`super::edge`]), so the decisions at a cell do not depend on
 //!   where the descent started; decisions are sound for the SPP table, so the level at
 //!   which an edge is decided, and whether a mask dropped a cell early, never changes
 //!   which subpixels a polygon gets. **Masks change work, never the image.**
 //! - No allocation per polygon or per cell: active-edge lists live in per-level scratch
-//!   vectors owned by the [`CellProcessors`].
+//!   vectors owned by the [`CellProcessors`]; one pass over a cell's edges fills its
+//!   four children's lists.
+//! - The cell's Z-order index goes down the descent (a child is `4 z + c`): the mask
+//!   memories are read and written without interleaving bits per cell.
 
 use super::edge::{EdgeCode, EdgeCoord, Tg, EDGE_FRAC_BITS};
+#[cfg(test)]
 use super::tables::GqRom;
 use crate::model::stats::Counters;
 
-/// An edge active in a cell: which edge of the polygon, and its V at the cell's first
-/// and second border (top/bottom for a vertical edge, left/right for a horizontal).
+/// An edge active in a cell: which edge of the polygon, its TG and LR, and its V at
+/// the cell's first and second border (top/bottom for a vertical edge, left/right for
+/// a horizontal), relative to the cell's first border across V (its left border for
+/// a vertical edge, its top for a horizontal one): the GQ's comparisons then need no
+/// cell origin, and a child's values are its parent's less half a cell or not.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ActiveEdge {
     /// Index into the polygon's edge list.
     pub edge: u32,
-    /// V1: V at the cell's first border.
+    /// The edge's TG is [`Tg::Vertical`].
+    pub vertical: bool,
+    /// The edge's LR: the polygon lies on the side of greater V.
+    pub lr: bool,
+    /// V1: V at the cell's first border, relative to the cell.
     pub v1: EdgeCoord,
-    /// V2: V at the cell's second border.
+    /// V2: V at the cell's second border, relative to the cell.
     pub v2: EdgeCoord,
+}
+
+impl ActiveEdge {
+    /// Edge `edge` (`e` itself) in the cell of side `side` pixels at pixel `(x0, y0)`.
+    #[inline]
+    pub fn at_cell(edge: u32, e: &EdgeCode, x0: i64, y0: i64, side: i64) -> Self {
+        let (t0, origin) = match e.tg {
+            Tg::Vertical => (y0, x0),
+            Tg::Horizontal => (x0, y0),
+        };
+        let origin = EdgeCoord::pixels(origin).0;
+        Self {
+            edge,
+            vertical: e.tg == Tg::Vertical,
+            lr: e.lr,
+            v1: EdgeCoord(e.v_at(t0).0 - origin),
+            v2: EdgeCoord(e.v_at(t0 + side).0 - origin),
+        }
+    }
 }
 
 /// Which levels' mask memories are in use: bit `k` for level `k` (levels `1..=L`).
@@ -280,21 +312,10 @@ pub struct CellProcessors {
     memories: Vec<MaskMemory>,
     /// The share the memories' cleared states were made for.
     cleared_share: Share,
-    scratch: Vec<Vec<ActiveEdge>>,
-    codes: Vec<Vec<EdgeSplit>>,
-}
-
-/// What a GQ keeps of one active edge between forming its codes and handing the
-/// children their active edges.
-#[derive(Clone, Copy, Debug)]
-struct EdgeSplit {
-    /// The children the edge crosses: `CRI_i & !CI_i`, bit per child.
-    crossed: u8,
-    /// The children on the first half of the edge's stretch (`V1`, midpoint): the top
-    /// row for a vertical edge, the left column for a horizontal one.
-    first_half: u8,
-    /// The midpoint `(V1 + V2) / 2`.
-    vm: EdgeCoord,
+    /// Active-edge lists, four per level: a cell's children's lists are
+    /// `lists[level + 1][child]`, filled in one pass over the cell's edges; the
+    /// starting cell's list is `lists[level][0]`.
+    lists: Vec<[Vec<ActiveEdge>; 4]>,
 }
 
 /// A level-L cell handed to the SPPs, with the edges that cross it.
@@ -303,7 +324,8 @@ pub struct Fragment<'a> {
     pub px: u32,
     /// Top pixel.
     pub py: u32,
-    /// Edges crossing the cell, with V at its borders.
+    /// Edges crossing the cell, with V at its borders relative to the cell's left
+    /// pixel column (vertical edges) or top pixel row (horizontal ones).
     pub active: &'a [ActiveEdge],
 }
 
@@ -347,8 +369,7 @@ impl CellProcessors {
             recorder: None,
             memories,
             cleared_share: Share::WHOLE,
-            scratch: vec![Vec::new(); root_level as usize + 1],
-            codes: vec![Vec::new(); root_level as usize + 1],
+            lists: vec![Default::default(); root_level as usize + 1],
         }
     }
 
@@ -495,82 +516,65 @@ impl CellProcessors {
         }
         let side = i64::from(self.side(start.level));
         let (x0, y0) = (i64::from(start.x) * side, i64::from(start.y) * side);
-        let list = &mut self.scratch[start.level as usize];
+        let list = &mut self.lists[start.level as usize][0];
         list.clear();
         for (i, e) in poly.edges.iter().enumerate() {
-            let t0 = match e.tg {
-                Tg::Vertical => y0,
-                Tg::Horizontal => x0,
-            };
-            list.push(ActiveEdge { edge: i as u32, v1: e.v_at(t0), v2: e.v_at(t0 + side) });
+            list.push(ActiveEdge::at_cell(i as u32, e, x0, y0, side));
         }
         if start.level == self.root_level {
-            spp(Fragment { px: start.x * 4, py: start.y * 4, active: &self.scratch[start.level as usize] });
+            spp(Fragment { px: start.x * 4, py: start.y * 4, active: &self.lists[start.level as usize][0] });
             return;
         }
-        self.split::<STATS>(GqRom::get(), start, poly, counters, spp);
+        self.split::<STATS>(start, start_z, 0, poly, counters, spp);
     }
 
-    /// One GQ step: splits `cell` (whose active edges are in `scratch[cell.level]`)
-    /// into four children and descends into those inside or crossed.
+    /// One GQ step: splits `cell` (Z-order index `z`, its active edges in
+    /// `lists[cell.level][list]`) into four children and descends into those inside
+    /// or crossed.
     fn split<const STATS: bool>(
         &mut self,
-        rom: &GqRom,
         cell: Cell,
+        z: usize,
+        list: usize,
         poly: &GqPolygon,
         counters: &mut Counters,
         spp: &mut impl FnMut(Fragment),
     ) {
         let k = cell.level as usize;
         let child_level = cell.level + 1;
-        let side = i64::from(self.side(cell.level));
-        let half_shift = EDGE_FRAC_BITS + (self.root_level + 1 - cell.level);
-        let on_line_bits = (1i64 << half_shift) - 1;
-        let (ox, oy) = (EdgeCoord::pixels(i64::from(cell.x) * side), EdgeCoord::pixels(i64::from(cell.y) * side));
+        let half = 1i64 << (EDGE_FRAC_BITS + (self.root_level + 1 - cell.level));
 
-        // Edge codes: CI_i, CRI_i per edge, ANDed (P1 eq. 2).
+        // Edge codes: CI_i, CRI_i per edge, ANDed (P1 eq. 2); each edge goes on the
+        // lists of the children it crosses, with the V of the child's stretch.
         let mut ci_all = 0xFu8;
         let mut cri_all = 0xFu8;
-        let active = &self.scratch[k];
-        let codes = &mut self.codes[k];
-        codes.clear();
-        for a in active.iter() {
-            let e = &poly.edges[a.edge as usize];
-            let origin = match e.tg {
-                Tg::Vertical => ox,
-                Tg::Horizontal => oy,
-            };
-            let vm = (a.v1.0 + a.v2.0) >> 1;
-            let (d1, dm, d2) = (a.v1.0 - origin.0, vm - origin.0, a.v2.0 - origin.0);
-            // Two readings of the high bits: `floor((V - origin) / half)` decides
-            // "the line lies at or beyond a child's far border" exactly, and the same
-            // of V one LSB lower decides "at or before its near border" exactly. A
-            // line lying on a cell border (the screen's edges after clipping, grid
-            // geometry) then leaves the cell on its side IN or OUT instead of
-            // crossed all the way down to the SPPs.
-            let b = |d: i64| (d >> half_shift).clamp(-1, 2) as i32;
-            let address = |b1: i32, bm: i32, b2: i32| GqRom::address(e.tg, e.lr, b1, bm, b2);
-            let at_or_after = rom.lookup(address(b(d1), b(dm), b(d2)));
-            // The readings differ only when a value lies exactly on a half-cell line.
-            let on_line = (d1 & on_line_bits == 0) | (dm & on_line_bits == 0) | (d2 & on_line_bits == 0);
-            let at_or_before = if on_line { rom.lookup(address(b(d1 - 1), b(dm - 1), b(d2 - 1))) } else { at_or_after };
-            // LR = 1 (polygon on the greater side): IN is "line before the child",
-            // OUT is "line after it"; LR = 0 the other way round.
-            let (ci, cri) = if e.lr { (at_or_before.0, at_or_after.1) } else { (at_or_after.0, at_or_before.1) };
-            let first_half = match e.tg {
-                Tg::Vertical => 0b0011,
-                Tg::Horizontal => 0b0101,
-            };
-            codes.push(EdgeSplit { crossed: cri & !ci, first_half, vm: EdgeCoord(vm) });
-            ci_all &= ci;
-            cri_all &= cri;
+        let (lo, hi) = self.lists.split_at_mut(k + 1);
+        let active = &lo[k][list];
+        let children = &mut hi[0];
+        for c in children.iter_mut() {
+            c.clear();
+        }
+        for a in active {
+            let code = edge_code(a.v1.0, a.v2.0, half, a.vertical, a.lr);
+            ci_all &= code.ci;
+            cri_all &= code.cri;
+            let mut crossed = code.cri & !code.ci;
+            while crossed != 0 {
+                let c = crossed.trailing_zeros() as usize;
+                crossed &= crossed - 1;
+                // The child's place along V's lines (its half of the stretch) and
+                // across them (its V origin half a cell further or not).
+                let (along, across) = if a.vertical { (c >> 1, c & 1) } else { (c & 1, c >> 1) };
+                let (v1, v2) = if along == 0 { (a.v1.0, code.vm) } else { (code.vm, a.v2.0) };
+                let shift = half * across as i64;
+                children[c].push(ActiveEdge { v1: EdgeCoord(v1 - shift), v2: EdgeCoord(v2 - shift), ..*a });
+            }
         }
         // The mask memory of the children's level.
         // Bits are only ever set on levels in use; cells wholly off the screen always
         // read as covered (pre-masked), whatever the mode.
         let mem_on = self.masks.has(child_level);
-        let cell_z = morton(cell.x, cell.y);
-        let m = self.memories[child_level as usize].children(cell_z);
+        let m = self.memories[child_level as usize].children(z);
         let cri = !m & cri_all & 0xF;
         let ci = !m & ci_all & 0xF;
         if STATS {
@@ -586,36 +590,61 @@ impl CellProcessors {
             }
         }
         if poly.opaque && mem_on {
-            self.memories[child_level as usize].set_children(cell_z, ci);
+            self.memories[child_level as usize].set_children(z, ci);
         }
         let mut todo = cri;
         while todo != 0 {
             let c = todo.trailing_zeros();
             todo &= todo - 1;
-            // Active edges of the child: those crossing it, with V1, V2 halved.
-            {
-                let (lo, hi) = self.scratch.split_at_mut(k + 1);
-                let (parent, child) = (&lo[k], &mut hi[0]);
-                child.clear();
-                for (a, s) in parent.iter().zip(self.codes[k].iter()) {
-                    if s.crossed >> c & 1 == 1 {
-                        let (v1, v2) = if s.first_half >> c & 1 == 1 { (a.v1, s.vm) } else { (s.vm, a.v2) };
-                        child.push(ActiveEdge { edge: a.edge, v1, v2 });
-                    }
-                }
-            }
             let child_cell = Cell { level: child_level, x: cell.x * 2 + (c & 1), y: cell.y * 2 + (c >> 1) };
             if child_level == self.root_level {
                 spp(Fragment {
                     px: child_cell.x * 4,
                     py: child_cell.y * 4,
-                    active: &self.scratch[child_level as usize],
+                    active: &self.lists[child_level as usize][c as usize],
                 });
             } else {
-                self.split::<STATS>(rom, child_cell, poly, counters, spp);
+                self.split::<STATS>(child_cell, 4 * z + c as usize, c as usize, poly, counters, spp);
             }
         }
     }
+}
+
+/// One edge's codes for the four children of a cell ([`edge_code`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct EdgeChildCodes {
+    /// CI: the children wholly on the polygon's side (bit `dx + 2 dy`).
+    ci: u8,
+    /// CRI: the children not wholly off it.
+    cri: u8,
+    /// The midpoint `(V1 + V2) / 2`, relative to the cell.
+    vm: i64,
+}
+
+/// The GQ ROM's answer ([`GqRom`](super::tables::GqRom), P1 eq. 1) for one edge with `V1 = d1`, `V2 = d2`
+/// relative to the cell and half a cell `half`, by comparisons instead of the look-up
+/// (the same bits, tested against the ROM): a child's stretch of the line is `(V1,
+/// Vm)` or `(Vm, V2)`, and for the child `across` half cells from the origin the ROM
+/// reads "the line lies at or before the child's near border" as `max <= across half`
+/// (its reading of the high bits of V one LSB lower) and "at or beyond its far
+/// border" as `min >= (across + 1) half`. With LR = 1 the first is IN and the second
+/// OUT; with LR = 0 the other way round. No branch and no table address.
+#[inline(always)]
+fn edge_code(d1: i64, d2: i64, half: i64, vertical: bool, lr: bool) -> EdgeChildCodes {
+    let dm = (d1 + d2) >> 1;
+    let (lo0, hi0) = (d1.min(dm), d1.max(dm));
+    let (lo1, hi1) = (dm.min(d2), dm.max(d2));
+    // Child bit of (along, across) = (0, 1) and (1, 0): `dx + 2 dy` with along the
+    // rows of a vertical edge (dy) and the columns of a horizontal one (dx).
+    let (p01, p10) = if vertical { (1, 2) } else { (2, 1) };
+    let before =
+        u8::from(hi0 <= 0) | u8::from(hi0 <= half) << p01 | u8::from(hi1 <= 0) << p10 | u8::from(hi1 <= half) << 3;
+    let after = u8::from(lo0 >= half)
+        | u8::from(lo0 >= 2 * half) << p01
+        | u8::from(lo1 >= half) << p10
+        | u8::from(lo1 >= 2 * half) << 3;
+    let (inside, outside) = if lr { (before, after) } else { (after, before) };
+    EdgeChildCodes { ci: inside, cri: !outside & 0xF, vm: dm }
 }
 
 /// Appends the four children of `cell` to a recorder with what the GQ decided about
@@ -684,6 +713,53 @@ mod tests {
         assert!(!m.get(3, 5) && !m.get(1, 0) && m.get(11, 0) && m.get(0, 7));
         // Children (10, 6), (11, 6), (10, 7), (11, 7): only the first is on the screen.
         assert_eq!(m.children(morton(5, 3)), 0b1110);
+    }
+
+    /// [`edge_code`]'s comparisons are the ROM's answer, as `split` formed it before
+    /// (two readings of the high bits, V and V one LSB lower, on half-cell lines):
+    /// every level, both TG and LR, values on, near and far from the half-cell lines.
+    #[test]
+    fn edge_code_is_the_rom() {
+        let rom = GqRom::get();
+        let mut state = 0x9E37_79B9_7F4A_7C15_u64;
+        let mut next = move |n: i64| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state % n as u64) as i64
+        };
+        for k in 0..400_000 {
+            let half_shift = EDGE_FRAC_BITS + 1 + (k % 12) as u32;
+            let half = 1i64 << half_shift;
+            // A value in half cells from -3 to 5, on a half-cell line, one off it, or
+            // anywhere.
+            let mut value = || {
+                let base = (next(9) - 3) * half;
+                match next(4) {
+                    0 => base,
+                    1 => base + next(3) - 1,
+                    _ => base + next(half),
+                }
+            };
+            let (d1, d2) = (value(), value());
+            for vertical in [false, true] {
+                for lr in [false, true] {
+                    let tg = if vertical { Tg::Vertical } else { Tg::Horizontal };
+                    let dm = (d1 + d2) >> 1;
+                    let b = |d: i64| (d >> half_shift).clamp(-1, 2) as i32;
+                    let address = |b1: i32, bm: i32, b2: i32| GqRom::address(tg, lr, b1, bm, b2);
+                    let at_or_after = rom.lookup(address(b(d1), b(dm), b(d2)));
+                    let at_or_before = rom.lookup(address(b(d1 - 1), b(dm - 1), b(d2 - 1)));
+                    let (ci, cri) = if lr { (at_or_before.0, at_or_after.1) } else { (at_or_after.0, at_or_before.1) };
+                    let want = EdgeChildCodes { ci, cri, vm: dm };
+                    assert_eq!(
+                        edge_code(d1, d2, half, vertical, lr),
+                        want,
+                        "d1 {d1}, d2 {d2}, half {half}, {tg:?}, lr {lr}"
+                    );
+                }
+            }
+        }
     }
 
     proptest::proptest! {
