@@ -73,14 +73,12 @@ impl<'a> ColorComputers<'a> {
     /// Colours the visible pixels of one cell of polygon `poly` into `out` (what it
     /// writes for pixels with no visible subpixel is unspecified).
     ///
-    /// The visible pixels are packed into groups of [`LANES`] and each group is
-    /// computed side by side, as arrays that vectorise, so that a cell's hidden
-    /// pixels cost nothing (a cell of an edge or of a small polygon has few visible
-    /// pixels: about 5 of 16 on the default scene). Every pixel gets the same
-    /// operations in the same order as one computed alone would (the stepping
-    /// `Q + A dx + B dy`, the reciprocal, the products), so the colours are bit for
-    /// bit those of a pixel-by-pixel loop. Only `exp` (and the texture unit's reads
-    /// and `log2`) go pixel by pixel.
+    /// The cell's pixels are computed in groups side by side, as arrays that
+    /// vectorise ([`Self::shade_lanes`]), so that a cell's hidden pixels cost little
+    /// (a cell of an edge or of a small polygon has few visible pixels: about 5 of 16
+    /// on the default scene). Every pixel gets the same operations in the same order
+    /// as one computed alone would (the stepping `Q + A dx + B dy`, the reciprocal,
+    /// the products), so the colours are bit for bit those of a pixel-by-pixel loop.
     pub fn shade<const STATS: bool>(
         &self,
         poly: &FramePolygon,
@@ -100,10 +98,12 @@ impl<'a> ColorComputers<'a> {
         self.shade_scalar::<STATS>(poly, vis, out, counters)
     }
 
-    /// [`Self::shade`] compiled for AVX2: the same operations on the same values (Rust
-    /// neither fuses nor reorders float operations, whatever the target), so the same
-    /// bits; the compiler lays the lanes' arithmetic out in 256-bit registers. Measured
-    /// on default at 1920 x 1080: colour + VB 47.1 -> 43.6 ms, city 27.9 -> 26.9 ms.
+    /// [`Self::shade`] compiled for AVX2, in groups of [`AVX2_LANES`] pixels: the
+    /// same operations on the same values (Rust neither fuses nor reorders float
+    /// operations, whatever the target), so the same bits; the compiler lays the
+    /// lanes' arithmetic out in 256-bit registers. The whole path (the group, the
+    /// texture unit's lanes, the TAC's ROM lanes) is inlined here, so all of it is
+    /// compiled for AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn shade_avx2<const STATS: bool>(
@@ -113,12 +113,11 @@ impl<'a> ColorComputers<'a> {
         out: &mut [Vec3; 16],
         counters: &mut Counters,
     ) {
-        self.shade_scalar::<STATS>(poly, vis, out, counters)
+        self.shade_lanes::<STATS, AVX2_LANES>(poly, vis, out, counters)
     }
 
     /// [`Self::shade`] for the build's target (x86-64-v2: SSE4.2) whatever the
-    /// processor; inlined into the AVX2 copy too.
-    #[inline(always)]
+    /// processor, in groups of [`LANES`] pixels (one 128-bit register).
     pub fn shade_scalar<const STATS: bool>(
         &self,
         poly: &FramePolygon,
@@ -126,85 +125,156 @@ impl<'a> ColorComputers<'a> {
         out: &mut [Vec3; 16],
         counters: &mut Counters,
     ) {
+        self.shade_lanes::<STATS, LANES>(poly, vis, out, counters)
+    }
+
+    /// [`Self::shade`] in groups of `N` pixels (4, 8 or 16: one, two or four rows
+    /// of the cell), inlined into each target's copy.
+    ///
+    /// A cell is coloured by its blocks of `N / 4` whole rows (the blocks with no
+    /// visible pixel skipped) when they are no more groups than its visible pixels
+    /// packed `N` to a group; else by the packed pixels, a last group's spare lanes
+    /// repeating its last pixel. A hidden pixel's lane is computed like the others
+    /// and left unused: no branch per lane.
+    #[inline(always)]
+    fn shade_lanes<const STATS: bool, const N: usize>(
+        &self,
+        poly: &FramePolygon,
+        vis: &Visible,
+        out: &mut [Vec3; 16],
+        counters: &mut Counters,
+    ) {
+        const { assert!(N == 4 || N == 8 || N == 16) };
         let visible = crate::model::stats::visible_pixels(&vis.sets);
-        // Q: centre of the cell's pixel (1, 1).
-        let (qx, qy) = (vis.px as f32 + 1.5, vis.py as f32 + 1.5);
-        let z_q = poly.inv_z.eval(qx, qy);
-        let i_q = poly.intensity.eval(qx, qy);
-        // A texture whose map is missing is not drawn: the face keeps its colour.
-        let texture: Option<(&PolyTexture, &TextureMap)> =
-            poly.texture.as_ref().and_then(|t| Some((t, self.textures.get(t.map)?)));
-        let (u_q, v_q) = texture.map_or((0.0, 0.0), |(t, _)| (t.u.eval(qx, qy), t.v.eval(qx, qy)));
-        let fog = self.fog_color.to_array();
-        let rom = TacRom::get();
-        // One group of pixels side by side, `dx`, `dy` from Q per lane (lanes not
-        // wanted, a packed group's spares or a row's hidden pixels, are computed
-        // like the others: no branch per lane).
-        let group = |dx: [f32; LANES], dy: [f32; LANES]| -> [[f32; LANES]; 3] {
-            // `Z` and intensity, stepped from Q (P2 fig. 2).
-            let mut z = [0.0f32; LANES];
-            let mut intensity = [0.0f32; LANES];
-            for l in 0..LANES {
-                let inv_z = z_q + poly.inv_z.a * dx[l] + poly.inv_z.b * dy[l];
-                z[l] = 1.0 / inv_z.max(f32::MIN_POSITIVE);
-                intensity[l] = ((i_q + poly.intensity.a * dx[l] + poly.intensity.b * dy[l]) * z[l]).max(0.0);
-            }
-            // C0, per component.
-            let c0: [[f32; LANES]; 3] = match texture {
-                Some((t, map)) => {
-                    let mut u = [0.0f32; LANES];
-                    let mut v = [0.0f32; LANES];
-                    let mut footprint = [0.0f32; LANES];
-                    for l in 0..LANES {
-                        u[l] = (u_q + t.u.a * dx[l] + t.u.b * dy[l]) * z[l];
-                        v[l] = (v_q + t.v.a * dx[l] + t.v.b * dy[l]) * z[l];
-                        footprint[l] = self.footprint_scale * z[l] * z[l] * t.par;
-                    }
-                    let m = map.sample_lanes(&u, &v, &footprint);
-                    let (c1, c2) = (t.color1.to_array(), t.color2.to_array());
-                    std::array::from_fn(|c| std::array::from_fn(|l| c1[c] * m[l] + c2[c] * (1.0 - m[l])))
-                }
-                None => poly.color.to_array().map(|c| [c; LANES]),
-            };
-            // Fog, `exp(-Z / Z0)` from the TAC's ROM; none is `f = 1`.
-            let f = if self.inv_visibility != 0.0 {
-                rom.fog_lanes(&z.map(|z| z * self.inv_visibility))
-            } else {
-                [1.0f32; LANES]
-            };
-            std::array::from_fn(|c| std::array::from_fn(|l| c0[c][l] * intensity[l] * f[l] + fog[c] * (1.0 - f[l])))
-        };
+        let cell = CellShader::new(self, poly, vis);
         let count = visible.count_ones() as usize;
-        if count > WHOLE_ROWS_FROM {
-            // Most of the cell: its four rows as the groups, with no packing (a
-            // hidden pixel's lane is computed and left unused).
-            for row in 0..CELL_ROWS {
-                let c = group(ROW_DX, [row as f32 - 1.0; LANES]);
-                for l in 0..LANES {
-                    out[LANES * row + l] = Vec3::new(c[0][l], c[1][l], c[2][l]);
+        let blocks = 16 / N;
+        let block_mask = (1u32 << N) - 1;
+        let live_blocks = (0..blocks).filter(|b| u32::from(visible) >> (N * b) & block_mask != 0).count();
+        if live_blocks <= count.div_ceil(N) {
+            for b in 0..blocks {
+                if u32::from(visible) >> (N * b) & block_mask == 0 {
+                    continue;
+                }
+                let dx: &[f32; N] = STEP_X[N * b..N * (b + 1)].try_into().expect("N lanes");
+                let dy: &[f32; N] = STEP_Y[N * b..N * (b + 1)].try_into().expect("N lanes");
+                let c = cell.group(dx, dy);
+                for l in 0..N {
+                    out[N * b + l] = Vec3::new(c[0][l], c[1][l], c[2][l]);
                 }
             }
         } else {
-            // The visible pixels (`4 y + x`), packed; a last group's spare lanes
-            // repeat its last pixel.
+            // The visible pixels (`4 y + x`), packed.
             let mut pixels = [0usize; 16];
             let mut rest = visible;
             for p in &mut pixels[..count] {
                 *p = rest.trailing_zeros() as usize;
                 rest &= rest - 1;
             }
-            for chunk in pixels[..count].chunks(LANES) {
+            for chunk in pixels[..count].chunks(N) {
                 let live = chunk.len();
-                let lane: [usize; LANES] = std::array::from_fn(|l| chunk[l.min(live - 1)]);
-                let c = group(lane.map(|i| STEP_X[i]), lane.map(|i| STEP_Y[i]));
+                let lane: [usize; N] = std::array::from_fn(|l| chunk[l.min(live - 1)]);
+                let c = cell.group(&lane.map(|i| STEP_X[i]), &lane.map(|i| STEP_Y[i]));
                 for (l, &i) in chunk.iter().enumerate() {
                     out[i] = Vec3::new(c[0][l], c[1][l], c[2][l]);
                 }
             }
         }
         if STATS {
-            counters.count_cc_cell(visible, texture.is_some());
+            counters.count_cc_cell(visible, cell.texture.is_some());
         }
+    }
+}
+
+/// Pixels side by side in the AVX2 copy of the colour computers: two rows of a
+/// cell, eight `f32` in one 256-bit register.
+#[cfg(target_arch = "x86_64")]
+const AVX2_LANES: usize = 8;
+
+/// The colour computers' values for one cell of one polygon: the functions at the
+/// cell's point Q and what the groups of its pixels share.
+struct CellShader<'a> {
+    /// The polygon.
+    poly: &'a FramePolygon,
+    /// Its texture and map, if it has a texture whose map exists (a texture whose
+    /// map is missing is not drawn: the face keeps its colour).
+    texture: Option<(&'a PolyTexture, &'a TextureMap)>,
+    /// `1/Z` at Q.
+    z_q: f32,
+    /// Intensity (times `1/Z`) at Q.
+    i_q: f32,
+    /// `u`, `v` (times `1/Z`) at Q; zero with no texture.
+    u_q: f32,
+    v_q: f32,
+    /// `C_fog`.
+    fog: [f32; 3],
+    /// `1 / Z0`, zero for no fog.
+    inv_visibility: f32,
+    /// `2 delta`.
+    footprint_scale: f32,
+    /// The TAC's ROMs.
+    rom: &'static TacRom,
+}
+
+impl<'a> CellShader<'a> {
+    /// The values at Q, the centre of the cell's pixel (1, 1).
+    #[inline(always)]
+    fn new(cc: &ColorComputers<'a>, poly: &'a FramePolygon, vis: &Visible) -> Self {
+        let (qx, qy) = (vis.px as f32 + 1.5, vis.py as f32 + 1.5);
+        let texture = poly.texture.as_ref().and_then(|t| Some((t, cc.textures.get(t.map)?)));
+        let (u_q, v_q) = texture.map_or((0.0, 0.0), |(t, _)| (t.u.eval(qx, qy), t.v.eval(qx, qy)));
+        Self {
+            poly,
+            texture,
+            z_q: poly.inv_z.eval(qx, qy),
+            i_q: poly.intensity.eval(qx, qy),
+            u_q,
+            v_q,
+            fog: cc.fog_color.to_array(),
+            inv_visibility: cc.inv_visibility,
+            footprint_scale: cc.footprint_scale,
+            rom: TacRom::get(),
+        }
+    }
+
+    /// The colours of `N` pixels side by side, `dx`, `dy` from Q per lane, as
+    /// `[r, g, b]` arrays over the lanes.
+    #[inline(always)]
+    fn group<const N: usize>(&self, dx: &[f32; N], dy: &[f32; N]) -> [[f32; N]; 3] {
+        let poly = self.poly;
+        // `Z` and intensity, stepped from Q (P2 fig. 2).
+        let mut z = [0.0f32; N];
+        let mut intensity = [0.0f32; N];
+        for l in 0..N {
+            let inv_z = self.z_q + poly.inv_z.a * dx[l] + poly.inv_z.b * dy[l];
+            z[l] = 1.0 / inv_z.max(f32::MIN_POSITIVE);
+            intensity[l] = ((self.i_q + poly.intensity.a * dx[l] + poly.intensity.b * dy[l]) * z[l]).max(0.0);
+        }
+        // C0, per component.
+        let c0: [[f32; N]; 3] = match self.texture {
+            Some((t, map)) => {
+                let mut u = [0.0f32; N];
+                let mut v = [0.0f32; N];
+                let mut footprint = [0.0f32; N];
+                for l in 0..N {
+                    u[l] = (self.u_q + t.u.a * dx[l] + t.u.b * dy[l]) * z[l];
+                    v[l] = (self.v_q + t.v.a * dx[l] + t.v.b * dy[l]) * z[l];
+                    footprint[l] = self.footprint_scale * z[l] * z[l] * t.par;
+                }
+                let m = map.sample_lanes(&u, &v, &footprint);
+                let (c1, c2) = (t.color1.to_array(), t.color2.to_array());
+                std::array::from_fn(|c| std::array::from_fn(|l| c1[c] * m[l] + c2[c] * (1.0 - m[l])))
+            }
+            None => poly.color.to_array().map(|c| [c; N]),
+        };
+        // Fog, `exp(-Z / Z0)` from the TAC's ROM; none is `f = 1`.
+        let f = if self.inv_visibility != 0.0 {
+            self.rom.fog_lanes(&z.map(|z| z * self.inv_visibility))
+        } else {
+            [1.0f32; N]
+        };
+        let fog = self.fog;
+        std::array::from_fn(|c| std::array::from_fn(|l| c0[c][l] * intensity[l] * f[l] + fog[c] * (1.0 - f[l])))
     }
 }
 
@@ -232,18 +302,6 @@ impl ColorComputers<'_> {
         Some(out[Q_PIXEL])
     }
 }
-
-/// Above this many visible pixels a cell is coloured as its four whole rows, one
-/// group each; up to it, its visible pixels are packed into groups. (From 13 on the
-/// packed pixels take four groups too, so the rows cost the same work less the
-/// packing.)
-const WHOLE_ROWS_FROM: usize = 12;
-
-/// Rows of a cell.
-const CELL_ROWS: usize = 4;
-
-/// `dx` of the four pixels of a cell's row from Q.
-const ROW_DX: [f32; LANES] = [-1.0, 0.0, 1.0, 2.0];
 
 /// `dx` of pixel `i` (`4 y + x`) of a cell from Q, its pixel (1, 1).
 const STEP_X: [f32; 16] = [-1.0, 0.0, 1.0, 2.0, -1.0, 0.0, 1.0, 2.0, -1.0, 0.0, 1.0, 2.0, -1.0, 0.0, 1.0, 2.0];

@@ -216,7 +216,7 @@ impl TextureMap {
         self.trilinear(u, v, self.lod(footprint))
     }
 
-    /// [`Self::sample`] for [`LANES`] pixels side by side: lane `l` of the result is
+    /// [`Self::sample`] for `N` pixels side by side: lane `l` of the result is
     /// `self.sample(u[l], v[l], footprint[l])`, bit for bit. Every lane is sampled,
     /// whatever its inputs (the addresses are wrapped with masks), so that no
     /// lane-by-lane branch is needed; the colour computers fill a group's spare
@@ -230,27 +230,27 @@ impl TextureMap {
     /// in a coarser level (every `kr` is 0: a magnified map, or the last level),
     /// that level is not read.
     #[inline(always)]
-    pub fn sample_lanes(&self, u: &[f32; LANES], v: &[f32; LANES], footprint: &[f32; LANES]) -> [f32; LANES] {
+    pub fn sample_lanes<const N: usize>(&self, u: &[f32; N], v: &[f32; N], footprint: &[f32; N]) -> [f32; N] {
         let n = self.log2_side;
         // Level of detail ([`Self::lod`], [`lod_of_texels`]).
         let (side, top, beyond) = (self.side() as f32, n as f32, (2u32 << n) as f32);
-        let texels: [f32; LANES] = std::array::from_fn(|l| footprint[l] * side);
+        let texels: [f32; N] = std::array::from_fn(|l| footprint[l] * side);
         // `log2` of every lane (finite whatever the bits), kept where the clamp
         // does not settle the level.
         let log = TacRom::get().log2_lanes(&texels);
-        let mut lod = [0.0f32; LANES];
-        for l in 0..LANES {
+        let mut lod = [0.0f32; N];
+        for l in 0..N {
             let above = if texels[l] < beyond { log[l].min(top) } else { top };
             lod[l] = if texels[l] > 1.0 { above } else { 0.0 };
         }
         // [`Self::trilinear`]: `lod` is already in `0..=n`, so its clamp is the
         // identity (a zero's sign aside, which changes neither `k` nor `kr`), and
         // its integer part is its floor.
-        let mut kr = [0.0f32; LANES];
-        let mut k = [0i32; LANES];
-        let mut fu = [0.0f32; LANES];
-        let mut fv = [0.0f32; LANES];
-        for l in 0..LANES {
+        let mut kr = [0.0f32; N];
+        let mut k = [0i32; N];
+        let mut fu = [0.0f32; N];
+        let mut fv = [0.0f32; N];
+        for l in 0..N {
             let floor = lod[l].floor();
             kr[l] = lod[l] - floor;
             k[l] = small_int(floor);
@@ -259,7 +259,7 @@ impl TextureMap {
         }
         // [`Self::bilinear`] in level `k`.
         let fine = LevelLookup::new(n, &k, &fu, &fv).read(&self.texels);
-        if kr == [0.0; LANES] {
+        if kr == [0.0; N] {
             // Trilinear keeps the fine value alone in every lane.
             return fine;
         }
@@ -275,30 +275,29 @@ impl TextureMap {
     }
 }
 
-/// Pixels the colour computers and the texture unit work on side by side: one
-/// 128-bit register of `f32` (x86-64-v2's SSE), the visible pixels of a cell
-/// packed into groups of four.
+/// Pixels the colour computers and the texture unit work on side by side in the
+/// build target's code: one 128-bit register of `f32` (x86-64-v2's SSE).
 pub const LANES: usize = 4;
 
 /// The bilinear look-ups of [`TextureMap::sample_lanes`] in one level per lane: the
 /// weights `Ku`, `Kv` and the addresses in the map's texels of `T1..T4` (P2 eq. 3).
-struct LevelLookup {
+struct LevelLookup<const N: usize> {
     /// `Ku` per lane.
-    ku: [f32; LANES],
+    ku: [f32; N],
     /// `Kv` per lane.
-    kv: [f32; LANES],
+    kv: [f32; N],
     /// Where `T1, T2, T3, T4` are, per lane ([`TextureMap::quad`]).
-    index: [[u32; LANES]; 4],
+    index: [[u32; N]; 4],
 }
 
-impl LevelLookup {
+impl<const N: usize> LevelLookup<N> {
     /// The look-ups in level `k[l]` (at most `n`) at the fractional parts
     /// `fu[l]`, `fv[l]`, as [`TextureMap::bilinear`] makes them.
     #[inline(always)]
-    fn new(n: u32, k: &[i32; LANES], fu: &[f32; LANES], fv: &[f32; LANES]) -> Self {
-        let mut lookup = Self { ku: [0.0; LANES], kv: [0.0; LANES], index: [[0; LANES]; 4] };
+    fn new(n: u32, k: &[i32; N], fu: &[f32; N], fv: &[f32; N]) -> Self {
+        let mut lookup = Self { ku: [0.0; N], kv: [0.0; N], index: [[0; N]; 4] };
         let [t1, t2, t3, t4] = &mut lookup.index;
-        for l in 0..LANES {
+        for l in 0..N {
             // The side `2^(n-k)`, exactly `(1 << (n - k)) as f32`, from its bits.
             let side = f32::from_bits((127 + (n as i32 - k[l]) as u32) << 23);
             let (i0, ku) = split(fu[l] * side - 0.5);
@@ -326,12 +325,12 @@ impl LevelLookup {
     /// compiler so (one vector operation per quad, where a bounds check costs a
     /// compare and a branch per read).
     #[inline(always)]
-    fn read(&self, texels: &[u8]) -> [f32; LANES] {
+    fn read(&self, texels: &[u8]) -> [f32; N] {
         let last = (texels.len() - 1) as u32;
         let texels = &texels[..=last as usize];
-        let mut t = [[0.0f32; LANES]; 4];
+        let mut t = [[0.0f32; N]; 4];
         for (t, index) in t.iter_mut().zip(&self.index) {
-            let index: [u32; LANES] = index.map(|i| i.min(last));
+            let index: [u32; N] = index.map(|i| i.min(last));
             for (t, i) in t.iter_mut().zip(index) {
                 *t = f32::from(texels[i as usize]);
             }
