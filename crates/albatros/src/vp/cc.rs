@@ -22,12 +22,15 @@
 //! operations, so the bits are the same, and the tests compare both with the plain
 //! per-pixel definition.
 
+#[cfg(target_arch = "x86_64")]
+use std::arch::x86_64::*;
+
 use glam::Vec3;
 
 use super::spp::Visible;
 use super::tac::TacRom;
 use super::texture::{TextureMap, TextureMaps, LANES};
-use crate::frame::{FrameList, FramePolygon, PolyTexture};
+use crate::frame::{FracLin, FrameList, FramePolygon, PolyTexture};
 use crate::model::stats::Counters;
 
 /// Number of colour channels (P1: four).
@@ -98,15 +101,68 @@ impl<'a> ColorComputers<'a> {
         self.shade_scalar::<STATS>(poly, vis, out, counters)
     }
 
-    /// [`Self::shade`] compiled for AVX2, in groups of [`AVX2_LANES`] pixels: the
-    /// same operations on the same values (Rust neither fuses nor reorders float
-    /// operations, whatever the target), so the same bits; the compiler lays the
-    /// lanes' arithmetic out in 256-bit registers. The whole path (the group, the
-    /// texture unit's lanes, the TAC's ROM lanes) is inlined here, so all of it is
-    /// compiled for AVX2.
+    /// [`Self::shade`] in explicit AVX2, in groups of [`AVX2_LANES`] pixels (two
+    /// rows of the cell, or eight packed pixels) in 256-bit registers
+    /// ([`CellShader::group_avx2`]), the ROMs' and the texture map's reads as
+    /// gathers: the same operations on the same values as [`Self::shade_lanes`]
+    /// (Rust neither fuses nor reorders float operations), so the same bits.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn shade_avx2<const STATS: bool>(
+        &self,
+        poly: &FramePolygon,
+        vis: &Visible,
+        out: &mut [Vec3; 16],
+        counters: &mut Counters,
+    ) {
+        const N: usize = AVX2_LANES;
+        let visible = visible_avx2(&vis.sets);
+        let cell = CellShader::new(self, poly, vis);
+        let count = visible.count_ones() as usize;
+        // The groups' pixels (`4 y + x` per lane) and how many of their lanes are
+        // wanted: the cell's halves with a visible pixel, or its visible pixels
+        // packed when they take fewer groups (a last group's spare lanes repeat
+        // its last pixel). One call of the group below, so that it is inlined
+        // with what the groups share hoisted.
+        let mut groups = [[0i32; N]; 2];
+        let mut wanted = [0usize; 2];
+        let mut group_count = 0;
+        let halves = [visible & 0xFF, visible >> N];
+        let live_halves = halves.iter().filter(|&&h| h != 0).count();
+        if live_halves <= count.div_ceil(N) {
+            for (b, &half) in halves.iter().enumerate() {
+                if half != 0 {
+                    groups[group_count] = std::array::from_fn(|l| (N * b + l) as i32);
+                    wanted[group_count] = N;
+                    group_count += 1;
+                }
+            }
+        } else {
+            let mut pixels = [0i32; 16];
+            let mut rest = visible;
+            for p in &mut pixels[..count] {
+                *p = rest.trailing_zeros() as i32;
+                rest &= rest - 1;
+            }
+            for (g, chunk) in pixels[..count].chunks(N).enumerate() {
+                let live = chunk.len();
+                groups[g] = std::array::from_fn(|l| chunk[l.min(live - 1)]);
+                wanted[g] = live;
+                group_count = g + 1;
+            }
+        }
+        cell.groups_avx2(&groups[..group_count], &wanted, out);
+        if STATS {
+            counters.count_cc_cell(visible, cell.texture.is_some());
+        }
+    }
+
+    /// [`Self::shade_lanes`] compiled for AVX2, in groups of [`AVX2_LANES`]: the
+    /// compiler's vectorisation of the portable code, kept to test that it gives
+    /// the same bits as the explicit copy on any processor with AVX2.
+    #[cfg(all(test, target_arch = "x86_64"))]
+    #[target_feature(enable = "avx2")]
+    fn shade_lanes_avx2<const STATS: bool>(
         &self,
         poly: &FramePolygon,
         vis: &Visible,
@@ -237,6 +293,82 @@ impl<'a> CellShader<'a> {
         }
     }
 
+    /// The colours of the pixels of `groups` (`4 y + x` per lane; the first
+    /// `wanted[g]` lanes of group `g` are written) into `out`: [`Self::group_avx2`]
+    /// for each, in one loop so that what the groups share is computed once.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn groups_avx2(&self, groups: &[[i32; AVX2_LANES]], wanted: &[usize; 2], out: &mut [Vec3; 16]) {
+        for (lanes, &wanted) in groups.iter().zip(wanted) {
+            let pixel =
+                _mm256_setr_epi32(lanes[0], lanes[1], lanes[2], lanes[3], lanes[4], lanes[5], lanes[6], lanes[7]);
+            let c = self.group_avx2(pixel);
+            if wanted == AVX2_LANES && lanes[0] % AVX2_LANES as i32 == 0 && lanes[AVX2_LANES - 1] == lanes[0] + 7 {
+                // Half a cell: its eight colours in place, whole.
+                store_half(c, out, lanes[0] as usize / AVX2_LANES);
+            } else {
+                let mut rgb = [[0.0f32; AVX2_LANES]; 3];
+                store_colors(c, &mut rgb);
+                for (l, &i) in lanes.iter().enumerate().take(wanted) {
+                    out[i as usize & 15] = Vec3::new(rgb[0][l], rgb[1][l], rgb[2][l]);
+                }
+            }
+        }
+    }
+
+    /// [`Self::group`] of eight pixels (`4 y + x` per lane) in AVX2 registers,
+    /// bit for bit: the same operations in the same order.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn group_avx2(&self, pixel: __m256i) -> [__m256; 3] {
+        let poly = self.poly;
+        // `dx = x - 1`, `dy = y - 1`: Q is pixel (1, 1).
+        let one_i = _mm256_set1_epi32(1);
+        let dx = _mm256_cvtepi32_ps(_mm256_sub_epi32(_mm256_and_si256(pixel, _mm256_set1_epi32(3)), one_i));
+        let dy = _mm256_cvtepi32_ps(_mm256_sub_epi32(_mm256_srli_epi32::<2>(pixel), one_i));
+        let one = _mm256_set1_ps(1.0);
+        // `Z` and intensity; `max` with the constant second: `maxps` gives it for
+        // a NaN, as `f32::max` does.
+        let inv_z = step_avx2(self.z_q, &poly.inv_z, dx, dy);
+        let z = _mm256_div_ps(one, _mm256_max_ps(inv_z, _mm256_set1_ps(f32::MIN_POSITIVE)));
+        let intensity = _mm256_mul_ps(step_avx2(self.i_q, &poly.intensity, dx, dy), z);
+        let intensity = _mm256_max_ps(intensity, _mm256_setzero_ps());
+        let c0: [__m256; 3] = match self.texture {
+            Some((t, map)) => {
+                let u = _mm256_mul_ps(step_avx2(self.u_q, &t.u, dx, dy), z);
+                let v = _mm256_mul_ps(step_avx2(self.v_q, &t.v, dx, dy), z);
+                let footprint = _mm256_mul_ps(
+                    _mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(self.footprint_scale), z), z),
+                    _mm256_set1_ps(t.par),
+                );
+                let m = map.sample_avx2(u, v, footprint);
+                let not_m = _mm256_sub_ps(one, m);
+                let (c1, c2) = (t.color1.to_array(), t.color2.to_array());
+                [0, 1, 2].map(|c| {
+                    _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(c1[c]), m), _mm256_mul_ps(_mm256_set1_ps(c2[c]), not_m))
+                })
+            }
+            None => {
+                let c = poly.color.to_array();
+                [_mm256_set1_ps(c[0]), _mm256_set1_ps(c[1]), _mm256_set1_ps(c[2])]
+            }
+        };
+        let f = if self.inv_visibility != 0.0 {
+            self.rom.fog_avx2(_mm256_mul_ps(z, _mm256_set1_ps(self.inv_visibility)))
+        } else {
+            one
+        };
+        let not_f = _mm256_sub_ps(one, f);
+        let fog = self.fog;
+        [0, 1, 2].map(|c| {
+            _mm256_add_ps(
+                _mm256_mul_ps(_mm256_mul_ps(c0[c], intensity), f),
+                _mm256_mul_ps(_mm256_set1_ps(fog[c]), not_f),
+            )
+        })
+    }
+
     /// The colours of `N` pixels side by side, `dx`, `dy` from Q per lane, as
     /// `[r, g, b]` arrays over the lanes.
     #[inline(always)]
@@ -276,6 +408,79 @@ impl<'a> CellShader<'a> {
         let fog = self.fog;
         std::array::from_fn(|c| std::array::from_fn(|l| c0[c][l] * intensity[l] * f[l] + fog[c] * (1.0 - f[l])))
     }
+}
+
+/// [`crate::model::stats::visible_pixels`] in AVX2: a bit per pixel with a
+/// visible subpixel, from one compare of the cell's 16 sets.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn visible_avx2(sets: &[u16; 16]) -> u16 {
+    // SAFETY: `sets` is 16 `u16`, the 32 bytes the load reads.
+    #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
+    let sets = unsafe { _mm256_loadu_si256(sets.as_ptr().cast()) };
+    let hidden = _mm256_cmpeq_epi16(sets, _mm256_setzero_si256());
+    // Each pixel's 16-bit compare to one byte, in pixel order.
+    let bytes = _mm_packs_epi16(_mm256_castsi256_si128(hidden), _mm256_extracti128_si256::<1>(hidden));
+    !(_mm_movemask_epi8(bytes) as u16)
+}
+
+/// The colours of pixels `8 half .. 8 half + 8` of a cell, `[r, g, b]` over the
+/// lanes, into `out` as its `Vec3`s (`x, y, z` in a row, 12 bytes each): a
+/// transpose in registers and three 32-byte stores.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn store_half([r, g, b]: [__m256; 3], out: &mut [Vec3; 16], half: usize) {
+    const { assert!(size_of::<Vec3>() == 12 && size_of::<[Vec3; 16]>() == 192) };
+    // In each 128-bit half (lanes 0-3, 4-7): the 12 floats `r0 g0 b0 r1 | g1 b1 r2
+    // g2 | b2 r3 g3 b3` are blends of `r` as `r0 r3 r2 r1`, `g` as `g1 g0 g3 g2`
+    // and `b` as `b2 b1 b0 b3`.
+    let r = _mm256_permute_ps::<0b01_10_11_00>(r);
+    let g = _mm256_permute_ps::<0b10_11_00_01>(g);
+    let b = _mm256_permute_ps::<0b11_00_01_10>(b);
+    let x0 = _mm256_blend_ps::<0b0100_0100>(_mm256_blend_ps::<0b0010_0010>(r, g), b);
+    let x1 = _mm256_blend_ps::<0b0100_0100>(_mm256_blend_ps::<0b0010_0010>(g, b), r);
+    let x2 = _mm256_blend_ps::<0b0100_0100>(_mm256_blend_ps::<0b0010_0010>(b, r), g);
+    // Lanes 0-3 then 4-7: `x0.lo x1.lo | x2.lo x0.hi | x1.hi x2.hi`.
+    let y0 = _mm256_permute2f128_ps::<0x20>(x0, x1);
+    let y1 = _mm256_permute2f128_ps::<0x30>(x2, x0);
+    let y2 = _mm256_permute2f128_ps::<0x31>(x1, x2);
+    let half = half & 1;
+    // SAFETY: `out` is 192 bytes of `f32` (the assertion above); half `half` (0
+    // or 1) is its 96 bytes from `96 half`, which the three stores write.
+    #[allow(unsafe_code, reason = "stores of three registers into the half cell they fill")]
+    unsafe {
+        let at = out.as_mut_ptr().cast::<f32>().add(24 * half);
+        _mm256_storeu_ps(at, y0);
+        _mm256_storeu_ps(at.add(8), y1);
+        _mm256_storeu_ps(at.add(16), y2);
+    }
+}
+
+/// Lane `l` of `v` at `out[c][l]`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn store_colors(v: [__m256; 3], out: &mut [[f32; AVX2_LANES]; 3]) {
+    for (v, out) in v.into_iter().zip(out) {
+        // SAFETY: `out` is 8 `f32`, the 32 bytes the store writes.
+        #[allow(unsafe_code, reason = "an unaligned store of a register into an array of its size")]
+        unsafe {
+            _mm256_storeu_ps(out.as_mut_ptr(), v)
+        };
+    }
+}
+
+/// `q + a dx + b dy` of eight lanes, in that order (P2 fig. 2's stepping).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn step_avx2(q: f32, f: &FracLin, dx: __m256, dy: __m256) -> __m256 {
+    _mm256_add_ps(
+        _mm256_add_ps(_mm256_set1_ps(q), _mm256_mul_ps(_mm256_set1_ps(f.a), dx)),
+        _mm256_mul_ps(_mm256_set1_ps(f.b), dy),
+    )
 }
 
 impl ColorComputers<'_> {
@@ -460,12 +665,23 @@ mod tests {
             // The build target's code, whatever the processor has.
             let mut scalar = [unset; 16];
             cc.shade_scalar::<false>(&poly, &vis, &mut scalar, &mut Counters::new(9));
+            // The compiler's AVX2 code of the portable lanes, where there is AVX2.
+            let mut lanes_avx2 = scalar;
+            #[cfg(target_arch = "x86_64")]
+            if std::is_x86_feature_detected!("avx2") {
+                // SAFETY: the processor has AVX2.
+                #[allow(unsafe_code, reason = "a test of the AVX2 copy, after detection")]
+                unsafe {
+                    cc.shade_lanes_avx2::<false>(&poly, &vis, &mut lanes_avx2, &mut Counters::new(9))
+                };
+            }
             // The visible pixels; what the others get is unspecified.
             for (i, c) in out.iter().enumerate().filter(|(i, _)| visible >> i & 1 == 1) {
                 let expect = plain_pixel(&cc, &poly, px, py, i);
                 let bits = |v: &Vec3| v.to_array().map(f32::to_bits);
                 assert_eq!(bits(c), bits(&expect), "round {round}, pixel {i}: {c} against {expect}");
                 assert_eq!(bits(&scalar[i]), bits(&expect), "round {round}, pixel {i}: the target's code");
+                assert_eq!(bits(&lanes_avx2[i]), bits(&expect), "round {round}, pixel {i}: the AVX2 lanes");
             }
         }
     }

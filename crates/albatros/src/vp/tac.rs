@@ -18,6 +18,8 @@
 //! pixel here and are not what the hardware did); each is a few operations and two
 //! reads. The entries are `f32` rounded from `f64`; `albatros tables` writes them.
 
+#[cfg(target_arch = "x86_64")]
+use std::arch::x86_64::*;
 use std::sync::OnceLock;
 
 /// Fog ROM entries per unit of `x = Z / Z0`.
@@ -149,6 +151,62 @@ impl TacRom {
         out
     }
 
+    /// [`Self::fog_lanes`] of eight values in an AVX2 register, bit for bit: the
+    /// same operations in the same order, the two ROM reads per lane as two
+    /// gathers (`k` is at most 4096 and the table holds 4098 entries, so both
+    /// reads are inside it).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(crate) fn fog_avx2(&self, x: __m256) -> __m256 {
+        let full = FOG_RANGE * FOG_STEPS_PER_UNIT;
+        // `max(x * 256, 0)` then `min(.., 4096)`, NaN going to 0 as `f32::max`
+        // does (`maxps` returns its second operand when either is NaN).
+        let s = _mm256_mul_ps(x, _mm256_set1_ps(FOG_STEPS_PER_UNIT as f32));
+        let s = _mm256_min_ps(_mm256_max_ps(s, _mm256_setzero_ps()), _mm256_set1_ps(full as f32));
+        let k = _mm256_min_epu32(small_int_avx2(_mm256_floor_ps(s)), _mm256_set1_epi32(full as i32));
+        let t = _mm256_sub_ps(s, _mm256_cvtepi32_ps(k));
+        debug_assert!(self.fog.len() == full as usize + 2);
+        // SAFETY: every lane of `k` is at most `full` (the `min` above), and the
+        // table holds `full + 2` entries: `k` and `k + 1` are inside it.
+        #[allow(unsafe_code, reason = "gathers from the ROM, the addresses clamped inside it")]
+        let (a, b) = unsafe {
+            let table = self.fog.as_ptr();
+            (_mm256_i32gather_ps::<4>(table, k), _mm256_i32gather_ps::<4>(table.add(1), k))
+        };
+        _mm256_add_ps(a, _mm256_mul_ps(t, _mm256_sub_ps(b, a)))
+    }
+
+    /// [`Self::log2_lanes`] of eight values in an AVX2 register, bit for bit, the
+    /// two ROM reads per lane as two gathers (the address is 8 bits, at most 255,
+    /// and the table holds 257 entries).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(crate) fn log2_avx2(&self, x: __m256) -> __m256 {
+        let low_bits = MANTISSA_BITS - LOG2_ADDRESS_BITS;
+        let bits = _mm256_castps_si256(x);
+        let exponent = _mm256_sub_epi32(
+            _mm256_and_si256(_mm256_srli_epi32::<{ MANTISSA_BITS as i32 }>(bits), _mm256_set1_epi32(0xFF)),
+            _mm256_set1_epi32(127),
+        );
+        let exponent = _mm256_cvtepi32_ps(exponent);
+        let k = _mm256_and_si256(
+            _mm256_srli_epi32::<{ (MANTISSA_BITS - LOG2_ADDRESS_BITS) as i32 }>(bits),
+            _mm256_set1_epi32((1 << LOG2_ADDRESS_BITS) - 1),
+        );
+        let t = _mm256_cvtepi32_ps(_mm256_and_si256(bits, _mm256_set1_epi32((1 << low_bits) - 1)));
+        let t = _mm256_mul_ps(t, _mm256_set1_ps(1.0 / (1u32 << low_bits) as f32));
+        // SAFETY: every lane of `k` is 8 bits (the mask above), at most 255, and
+        // the table holds 257 entries: `k` and `k + 1` are inside it.
+        #[allow(unsafe_code, reason = "gathers from the ROM, the addresses masked inside it")]
+        let (a, b) = unsafe {
+            let table = self.log2.as_ptr();
+            (_mm256_i32gather_ps::<4>(table, k), _mm256_i32gather_ps::<4>(table.add(1), k))
+        };
+        _mm256_add_ps(exponent, _mm256_add_ps(a, _mm256_mul_ps(t, _mm256_sub_ps(b, a))))
+    }
+
     /// The fog ROM's entries.
     pub fn fog_table(&self) -> &[f32] {
         &self.fog[..]
@@ -178,6 +236,18 @@ impl TacRom {
 pub(crate) fn small_int(x: f32) -> i32 {
     const MAGIC: f32 = 12_582_912.0;
     (x + MAGIC).to_bits() as i32 - MAGIC.to_bits() as i32
+}
+
+/// [`small_int`] of eight values in an AVX2 register.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(crate) fn small_int_avx2(x: __m256) -> __m256i {
+    const MAGIC: f32 = 12_582_912.0;
+    _mm256_sub_epi32(
+        _mm256_castps_si256(_mm256_add_ps(x, _mm256_set1_ps(MAGIC))),
+        _mm256_set1_epi32(MAGIC.to_bits() as i32),
+    )
 }
 
 #[cfg(test)]
@@ -233,6 +303,40 @@ mod tests {
         f32::MAX,
     ];
 
+    /// [`TacRom::fog_avx2`] and [`TacRom::log2_avx2`] of eight values, where the
+    /// processor has AVX2.
+    #[cfg(target_arch = "x86_64")]
+    fn roms_avx2(rom: &TacRom, x: &[f32; 8]) -> Option<([f32; 8], [f32; 8])> {
+        #[target_feature(enable = "avx2")]
+        #[allow(unsafe_code, reason = "a load and stores of arrays of a register's size")]
+        fn run(rom: &TacRom, x: &[f32; 8]) -> ([f32; 8], [f32; 8]) {
+            let (mut fog, mut log2) = ([0.0f32; 8], [0.0f32; 8]);
+            // SAFETY: each array is 8 `f32`, the 32 bytes each load or store touches.
+            unsafe {
+                let x = _mm256_loadu_ps(x.as_ptr());
+                _mm256_storeu_ps(fog.as_mut_ptr(), rom.fog_avx2(x));
+                _mm256_storeu_ps(log2.as_mut_ptr(), rom.log2_avx2(x));
+            }
+            (fog, log2)
+        }
+        // SAFETY: the processor has AVX2.
+        #[allow(unsafe_code, reason = "a test of the AVX2 copy, after detection")]
+        std::is_x86_feature_detected!("avx2").then(|| unsafe { run(rom, x) })
+    }
+
+    /// The AVX2 copies against the ROMs, bit for bit, where the processor has AVX2.
+    fn check_avx2(rom: &TacRom, x: &[f32; 8]) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some((fog, log2)) = roms_avx2(rom, x) {
+            for l in 0..8 {
+                assert_eq!(fog[l].to_bits(), rom.fog(x[l]).to_bits(), "AVX2 fog of {}", x[l]);
+                assert_eq!(log2[l].to_bits(), rom.log2(x[l]).to_bits(), "AVX2 log2 of {}", x[l]);
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = (rom, x);
+    }
+
     #[test]
     fn rom_lanes_are_the_roms_bit_for_bit() {
         let rom = TacRom::get();
@@ -257,6 +361,7 @@ mod tests {
                 assert_eq!(fog[l].to_bits(), rom.fog(x[l]).to_bits(), "fog of {}", x[l]);
                 assert_eq!(log2[l].to_bits(), rom.log2(bits[l]).to_bits(), "log2 of {}", bits[l]);
             }
+            check_avx2(rom, &std::array::from_fn(|l| if l < 4 { x[l] } else { bits[l - 4] }));
         }
         // Every fog entry and the points between.
         for k in 0..=(FOG_RANGE * FOG_STEPS_PER_UNIT * 4 + 8) {
@@ -265,6 +370,12 @@ mod tests {
             for l in 0..2 {
                 assert_eq!(fog[l].to_bits(), rom.fog(x[l]).to_bits(), "fog of {}", x[l]);
             }
+        }
+        for k in (0..=(FOG_RANGE * FOG_STEPS_PER_UNIT * 4 + 8)).step_by(4) {
+            check_avx2(rom, &std::array::from_fn(|l| (k as f32 + l as f32 * 0.5) / 1024.0));
+        }
+        for odd in ODD.chunks(8) {
+            check_avx2(rom, &std::array::from_fn(|l| odd[l % odd.len()]));
         }
         let log2 = rom.log2_lanes(&ODD);
         for (l, x) in ODD.iter().enumerate() {

@@ -32,6 +32,11 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
+#[cfg(target_arch = "x86_64")]
+use std::arch::x86_64::*;
+
+#[cfg(target_arch = "x86_64")]
+use super::tac::small_int_avx2;
 use super::tac::{small_int, TacRom};
 use crate::db::{Scene, TextureSource};
 
@@ -67,6 +72,14 @@ pub struct TextureMap {
     texels: Vec<u8>,
     /// Where each level starts in `texels`, `n + 1` entries.
     offsets: Vec<usize>,
+    /// The same levels laid out for one 4-byte read per bilinear look-up (the
+    /// AVX2 copy's gathers, [`TextureMap::sample_avx2`]): level `k` (side `s`)
+    /// is `s` rows of `s + 1` texel pairs, pair `(r, c)` at byte
+    /// `pair_start(n, s) + 2 (r (s + 1) + c)` holding texels `(c mod s, r)` and
+    /// `(c mod s, (r + 1) mod s)`. So the 4 bytes at pair `(r0, c0)` are `T1, T2,
+    /// T3, T4` of P2 eq. (3), wrapped, with no mask of the `+ 1`s. Twice the
+    /// texels' memory (plus a column per level).
+    pairs: Vec<u8>,
 }
 
 impl fmt::Debug for TextureMap {
@@ -119,7 +132,26 @@ impl TextureMap {
             texels.extend(next.iter().map(|&s| ((s + (1 << (count_log2 - 1))) >> count_log2) as u8));
             sums = next;
         }
-        Self { log2_side: n, texels, offsets }
+        let pairs = Self::pairs(n, &texels, &offsets);
+        Self { log2_side: n, texels, offsets, pairs }
+    }
+
+    /// The pair layout of the levels (see [`Self::pairs`]'s field).
+    fn pairs(n: u32, texels: &[u8], offsets: &[usize]) -> Vec<u8> {
+        // The last level (side 1) starts at `pair_start(n, 1)` and holds 4 bytes.
+        let mut pairs = Vec::with_capacity(pair_start(n, 1) as usize + 4);
+        for k in 0..=n {
+            let s = 1usize << (n - k);
+            let level = &texels[offsets[k as usize]..][..s * s];
+            debug_assert_eq!(pairs.len(), pair_start(n, s as u32) as usize);
+            for r in 0..s {
+                for c in 0..=s {
+                    pairs.push(level[r * s + c % s]);
+                    pairs.push(level[(r + 1) % s * s + c % s]);
+                }
+            }
+        }
+        pairs
     }
 
     /// `n`, where level 0 is `2^n x 2^n`.
@@ -275,9 +307,117 @@ impl TextureMap {
     }
 }
 
+#[cfg(target_arch = "x86_64")]
+impl TextureMap {
+    /// [`Self::sample_lanes`] of eight pixels in AVX2 registers, bit for bit: the
+    /// same operations in the same order, with the reads as gathers: the TAC's
+    /// `log2` ROM ([`TacRom::log2_avx2`]) and one 4-byte read of the pair layout
+    /// per lane and level for the four texels `T1..T4`.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(crate) fn sample_avx2(&self, u: __m256, v: __m256, footprint: __m256) -> __m256 {
+        let n = self.log2_side;
+        // Level of detail ([`Self::lod`], [`lod_of_texels`]).
+        let (side, top, beyond) = (self.side() as f32, n as f32, (2u32 << n) as f32);
+        let texels = _mm256_mul_ps(footprint, _mm256_set1_ps(side));
+        let log = TacRom::get().log2_avx2(texels);
+        let top = _mm256_set1_ps(top);
+        // `log.min(top)` (never NaN: the ROM's `log2` is finite) where below
+        // `beyond`, else `top`; all that where above one texel, else 0 (NaN too:
+        // ordered compares are false for it).
+        let above =
+            _mm256_blendv_ps(top, _mm256_min_ps(log, top), _mm256_cmp_ps::<_CMP_LT_OQ>(texels, _mm256_set1_ps(beyond)));
+        let lod = _mm256_and_ps(above, _mm256_cmp_ps::<_CMP_GT_OQ>(texels, _mm256_set1_ps(1.0)));
+        let floor = _mm256_floor_ps(lod);
+        let kr = _mm256_sub_ps(lod, floor);
+        let k = small_int_avx2(floor);
+        let (fu, fv) = (fract01_avx2(u), fract01_avx2(v));
+        let fine = self.bilinear_avx2(k, fu, fv);
+        // `kr == 0` in every lane (either zero's sign: `kr` is never NaN).
+        if _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_NEQ_UQ>(kr, _mm256_setzero_ps())) == 0 {
+            return fine;
+        }
+        let k = _mm256_min_epi32(_mm256_add_epi32(k, _mm256_set1_epi32(1)), _mm256_set1_epi32(n as i32));
+        let coarse = self.bilinear_avx2(k, fu, fv);
+        _mm256_add_ps(fine, _mm256_mul_ps(kr, _mm256_sub_ps(coarse, fine)))
+    }
+
+    /// [`LevelLookup`] and its read in level `k` per lane (at most `n`) at the
+    /// fractional parts `fu`, `fv`: P2 eq. (3) from one gather of the pair layout.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn bilinear_avx2(&self, k: __m256i, fu: __m256, fv: __m256) -> __m256 {
+        let n = _mm256_set1_epi32(self.log2_side as i32);
+        let level_log2 = _mm256_sub_epi32(n, k);
+        // The side `2^(n-k)` as `f32` from its bits, and as an integer.
+        let side_f = _mm256_castsi256_ps(_mm256_slli_epi32::<23>(_mm256_add_epi32(level_log2, _mm256_set1_epi32(127))));
+        let side = _mm256_sllv_epi32(_mm256_set1_epi32(1), level_log2);
+        let half = _mm256_set1_ps(0.5);
+        // [`split`] of `fu side - 1/2` and `fv side - 1/2`.
+        let s = _mm256_sub_ps(_mm256_mul_ps(fu, side_f), half);
+        let fs = _mm256_floor_ps(s);
+        let (i0, ku) = (small_int_avx2(fs), _mm256_sub_ps(s, fs));
+        let t = _mm256_sub_ps(_mm256_mul_ps(fv, side_f), half);
+        let ft = _mm256_floor_ps(t);
+        let (j0, kv) = (small_int_avx2(ft), _mm256_sub_ps(t, ft));
+        let mask = _mm256_sub_epi32(side, _mm256_set1_epi32(1));
+        let (c0, r0) = (_mm256_and_si256(i0, mask), _mm256_and_si256(j0, mask));
+        // [`pair_start`]: `2 (4^(n+1) - 4 s^2) / 3`, the exact division as the
+        // product by the inverse of 3 modulo 2^32, plus `2 (2^(n+1) - 2 s)`.
+        let n4 = _mm256_set1_epi32((4u32 << (2 * self.log2_side)) as i32);
+        let n2 = _mm256_set1_epi32((2u32 << self.log2_side) as i32);
+        let squares = _mm256_sub_epi32(n4, _mm256_slli_epi32::<2>(_mm256_mullo_epi32(side, side)));
+        let start = _mm256_add_epi32(
+            _mm256_slli_epi32::<1>(_mm256_mullo_epi32(squares, _mm256_set1_epi32(0xAAAA_AAABu32 as i32))),
+            _mm256_slli_epi32::<1>(_mm256_sub_epi32(n2, _mm256_slli_epi32::<1>(side))),
+        );
+        // Pair `(r0, c0)`: `start + 2 (r0 (s + 1) + c0)`.
+        let pair = _mm256_add_epi32(_mm256_mullo_epi32(r0, _mm256_add_epi32(side, _mm256_set1_epi32(1))), c0);
+        let index = _mm256_add_epi32(start, _mm256_slli_epi32::<1>(pair));
+        // Inside the layout already (the masks, and the starts of levels at most
+        // `n`); the `min` makes every read safe whatever the lanes hold.
+        let last = (self.pairs.len() - 4) as i32;
+        let index = _mm256_min_epu32(index, _mm256_set1_epi32(last));
+        // SAFETY: every lane of `index` is at most `pairs.len() - 4` (the `min`
+        // above): the 4 bytes read at it are inside `pairs`.
+        #[allow(unsafe_code, reason = "one gather of the texel pairs, the addresses clamped inside them")]
+        let quad = unsafe { _mm256_i32gather_epi32::<1>(self.pairs.as_ptr().cast::<i32>(), index) };
+        let byte = _mm256_set1_epi32(0xFF);
+        let t1 = _mm256_cvtepi32_ps(_mm256_and_si256(quad, byte));
+        let t2 = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32::<8>(quad), byte));
+        let t3 = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32::<16>(quad), byte));
+        let t4 = _mm256_cvtepi32_ps(_mm256_srli_epi32::<24>(quad));
+        // [`eq3`].
+        let one = _mm256_set1_ps(1.0);
+        let (nku, nkv) = (_mm256_sub_ps(one, ku), _mm256_sub_ps(one, kv));
+        let left = _mm256_add_ps(_mm256_mul_ps(nkv, t1), _mm256_mul_ps(kv, t2));
+        let right = _mm256_add_ps(_mm256_mul_ps(nkv, t3), _mm256_mul_ps(kv, t4));
+        let value = _mm256_add_ps(_mm256_mul_ps(nku, left), _mm256_mul_ps(ku, right));
+        _mm256_div_ps(value, _mm256_set1_ps(TEXEL_ONE))
+    }
+}
+
+/// [`fract01`] of eight values in an AVX2 register (`maxps` returns its second
+/// operand, 0, for a NaN, as `f32::max` does).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn fract01_avx2(x: __m256) -> __m256 {
+    let d = _mm256_sub_ps(x, _mm256_floor_ps(x));
+    _mm256_min_ps(_mm256_max_ps(d, _mm256_setzero_ps()), _mm256_set1_ps(1.0))
+}
+
 /// Pixels the colour computers and the texture unit work on side by side in the
 /// build target's code: one 128-bit register of `f32` (x86-64-v2's SSE).
 pub const LANES: usize = 4;
+
+/// Where level `k` of side `s = 2^(n-k)` starts in [`TextureMap`]'s pair layout:
+/// after levels `0..k`, `2 s_i (s_i + 1)` bytes each, `2 (4^(n+1) - 4 s^2) / 3 +
+/// 2 (2^(n+1) - 2 s)` in all. Exact in `u32` for `n` up to [`MAX_LOG2_SIDE`].
+#[inline(always)]
+fn pair_start(n: u32, s: u32) -> u32 {
+    2 * ((4u32 << (2 * n)) - 4 * s * s) / 3 + 2 * ((2u32 << n) - 2 * s)
+}
 
 /// The bilinear look-ups of [`TextureMap::sample_lanes`] in one level per lane: the
 /// weights `Ku`, `Kv` and the addresses in the map's texels of `T1..T4` (P2 eq. 3).
@@ -764,6 +904,52 @@ mod tests {
         fine + kr * (bilinear(k + 1) - fine)
     }
 
+    /// Eight lanes of [`TextureMap::sample_avx2`], where the processor has AVX2.
+    #[cfg(target_arch = "x86_64")]
+    fn sample_avx2_lanes(map: &TextureMap, u: &[f32; 8], v: &[f32; 8], footprint: &[f32; 8]) -> Option<[f32; 8]> {
+        #[target_feature(enable = "avx2")]
+        #[allow(unsafe_code, reason = "loads and a store of arrays of a register's size")]
+        fn run(map: &TextureMap, u: &[f32; 8], v: &[f32; 8], footprint: &[f32; 8]) -> [f32; 8] {
+            let mut out = [0.0f32; 8];
+            // SAFETY: each array is 8 `f32`, the 32 bytes each load or store touches.
+            unsafe {
+                let t = map.sample_avx2(
+                    _mm256_loadu_ps(u.as_ptr()),
+                    _mm256_loadu_ps(v.as_ptr()),
+                    _mm256_loadu_ps(footprint.as_ptr()),
+                );
+                _mm256_storeu_ps(out.as_mut_ptr(), t);
+            }
+            out
+        }
+        // SAFETY: the processor has AVX2.
+        #[allow(unsafe_code, reason = "a test of the AVX2 copy, after detection")]
+        std::is_x86_feature_detected!("avx2").then(|| unsafe { run(map, u, v, footprint) })
+    }
+
+    /// Every path of the texture unit against [`plain_sample`], bit for bit, at
+    /// eight points: [`TextureMap::sample`], [`TextureMap::sample_lanes`] by 8 and
+    /// by 4, and the AVX2 copy where there is AVX2.
+    fn check_sampling(map: &TextureMap, u: &[f32; 8], v: &[f32; 8], footprint: &[f32; 8]) {
+        let eight = map.sample_lanes(u, v, footprint);
+        let half = |x: &[f32; 8], h: usize| -> [f32; LANES] { std::array::from_fn(|l| x[LANES * h + l]) };
+        let four = [0, 1].map(|h| map.sample_lanes(&half(u, h), &half(v, h), &half(footprint, h)));
+        #[cfg(target_arch = "x86_64")]
+        let avx2 = sample_avx2_lanes(map, u, v, footprint);
+        #[cfg(not(target_arch = "x86_64"))]
+        let avx2: Option<[f32; 8]> = None;
+        for l in 0..8 {
+            let expect = plain_sample(map, u[l], v[l], footprint[l]).to_bits();
+            let at = format!("{map:?} u {} v {} fp {}", u[l], v[l], footprint[l]);
+            assert_eq!(map.sample(u[l], v[l], footprint[l]).to_bits(), expect, "{at}: sample");
+            assert_eq!(eight[l].to_bits(), expect, "{at}: 8 lanes");
+            assert_eq!(four[l / LANES][l % LANES].to_bits(), expect, "{at}: 4 lanes");
+            if let Some(avx2) = avx2 {
+                assert_eq!(avx2[l].to_bits(), expect, "{at}: AVX2");
+            }
+        }
+    }
+
     #[test]
     fn cell_sampling_is_sampling_bit_for_bit() {
         // Ordinary points, footprints across the pyramid (the clamped ends and the
@@ -777,34 +963,52 @@ mod tests {
         for map in [ramp(1), ramp(2), ramp(16), builtin("grass").unwrap(), TextureMap::build(12, vec![9; 1 << 24])] {
             let scale = map.side() as f32;
             for round in 0..1600 {
-                let u: [f32; LANES] = std::array::from_fn(|i| match round % 4 {
+                let u: [f32; 8] = std::array::from_fn(|i| match round % 4 {
                     0 => odd[(i + round) % odd.len()],
                     _ => (next() - 0.5) * 40.0,
                 });
-                let v: [f32; LANES] = std::array::from_fn(|_| (next() - 0.5) * 40.0);
-                let footprint: [f32; LANES] = std::array::from_fn(|i| match round % 3 {
+                let v: [f32; 8] = std::array::from_fn(|i| match round % 5 {
+                    0 => odd[(i + round / 5) % odd.len()],
+                    _ => (next() - 0.5) * 40.0,
+                });
+                let footprint: [f32; 8] = std::array::from_fn(|i| match round % 3 {
                     0 if (i + round) % 5 == 0 => odd[(i + round) % odd.len()],
                     _ => (next() * 30.0 - 15.0).exp2() / scale,
                 });
-                let t = map.sample_lanes(&u, &v, &footprint);
-                for i in 0..LANES {
-                    let expect = plain_sample(&map, u[i], v[i], footprint[i]);
-                    assert_eq!(t[i].to_bits(), expect.to_bits(), "{map:?} u {} v {} fp {}", u[i], v[i], footprint[i]);
-                    assert_eq!(map.sample(u[i], v[i], footprint[i]).to_bits(), expect.to_bits());
-                }
+                check_sampling(&map, &u, &v, &footprint);
             }
-            // Exact powers of two and their neighbours: the clamp's edges.
+            // Exact powers of two and their neighbours: the clamp's edges; and the
+            // map's edges, where the look-ups wrap.
             for e in -3..=14 {
                 let x = (e as f32).exp2() / scale;
-                let fp: [f32; LANES] = std::array::from_fn(|i| match i % 3 {
+                let fp: [f32; 8] = std::array::from_fn(|i| match i % 3 {
                     0 => x,
                     1 => f32::from_bits(x.to_bits() + 1),
                     _ => f32::from_bits(x.to_bits() - 1),
                 });
-                let (u, v) = ([0.3; LANES], [0.7; LANES]);
-                let t = map.sample_lanes(&u, &v, &fp);
-                for i in 0..LANES {
-                    assert_eq!(t[i].to_bits(), plain_sample(&map, 0.3, 0.7, fp[i]).to_bits());
+                let edge = [0.0, 1e-7, 0.5 / scale, 1.0 - 0.5 / scale, 1.0 - 1e-7, 1.0, -1e-7, 0.3];
+                check_sampling(&map, &[0.3; 8], &[0.7; 8], &fp);
+                check_sampling(&map, &edge, &[0.7; 8], &fp);
+                check_sampling(&map, &[0.3; 8], &edge, &fp);
+            }
+        }
+    }
+
+    /// The pair layout holds, at pair `(r, c)` of each level, texels `(c, r)` and
+    /// `(c, r + 1)`, wrapped.
+    #[test]
+    fn pair_layout_holds_the_texels() {
+        for map in [ramp(1), ramp(2), ramp(16), builtin("grass").unwrap()] {
+            let n = map.log2_side();
+            assert_eq!(map.pairs.len(), pair_start(n, 1) as usize + 4);
+            for k in 0..=n {
+                let s = 1u32 << (n - k);
+                for r in 0..s {
+                    for c in 0..=s {
+                        let at = (pair_start(n, s) + 2 * (r * (s + 1) + c)) as usize;
+                        let (c, r) = (c as i32, r as i32);
+                        assert_eq!(map.pairs[at..at + 2], [map.texel(k, c, r), map.texel(k, c, r + 1)]);
+                    }
                 }
             }
         }
