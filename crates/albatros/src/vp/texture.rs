@@ -36,7 +36,7 @@ use std::path::{Path, PathBuf};
 use std::arch::x86_64::*;
 
 #[cfg(target_arch = "x86_64")]
-use super::tac::small_int_avx2;
+use super::tac::{floor_avx512, small_int_avx2, small_int_avx512};
 use super::tac::{small_int, TacRom};
 use crate::db::{Scene, TextureSource};
 
@@ -395,6 +395,93 @@ impl TextureMap {
         let value = _mm256_add_ps(_mm256_mul_ps(nku, left), _mm256_mul_ps(ku, right));
         _mm256_div_ps(value, _mm256_set1_ps(TEXEL_ONE))
     }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl TextureMap {
+    /// [`Self::sample_lanes`] of sixteen pixels in AVX-512 registers, bit for bit:
+    /// [`Self::sample_avx2`] over twice the lanes, the selects as masks.
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    #[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
+    pub(crate) fn sample_avx512(&self, u: __m512, v: __m512, footprint: __m512) -> __m512 {
+        let n = self.log2_side;
+        let (side, top, beyond) = (self.side() as f32, n as f32, (2u32 << n) as f32);
+        let texels = _mm512_mul_ps(footprint, _mm512_set1_ps(side));
+        let log = TacRom::get().log2_avx512(texels);
+        let top = _mm512_set1_ps(top);
+        let below = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(texels, _mm512_set1_ps(beyond));
+        let above = _mm512_mask_blend_ps(below, top, _mm512_min_ps(log, top));
+        // Zero (`+0`) where not above one texel, NaN included.
+        let lod = _mm512_maskz_mov_ps(_mm512_cmp_ps_mask::<_CMP_GT_OQ>(texels, _mm512_set1_ps(1.0)), above);
+        let floor = floor_avx512(lod);
+        let kr = _mm512_sub_ps(lod, floor);
+        let k = small_int_avx512(floor);
+        let (fu, fv) = (fract01_avx512(u), fract01_avx512(v));
+        let fine = self.bilinear_avx512(k, fu, fv);
+        if _mm512_cmp_ps_mask::<_CMP_NEQ_UQ>(kr, _mm512_setzero_ps()) == 0 {
+            return fine;
+        }
+        let k = _mm512_min_epi32(_mm512_add_epi32(k, _mm512_set1_epi32(1)), _mm512_set1_epi32(n as i32));
+        let coarse = self.bilinear_avx512(k, fu, fv);
+        _mm512_add_ps(fine, _mm512_mul_ps(kr, _mm512_sub_ps(coarse, fine)))
+    }
+
+    /// [`Self::bilinear_avx2`] over sixteen lanes.
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    #[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
+    fn bilinear_avx512(&self, k: __m512i, fu: __m512, fv: __m512) -> __m512 {
+        let n = _mm512_set1_epi32(self.log2_side as i32);
+        let level_log2 = _mm512_sub_epi32(n, k);
+        let side_f = _mm512_castsi512_ps(_mm512_slli_epi32::<23>(_mm512_add_epi32(level_log2, _mm512_set1_epi32(127))));
+        let side = _mm512_sllv_epi32(_mm512_set1_epi32(1), level_log2);
+        let half = _mm512_set1_ps(0.5);
+        let s = _mm512_sub_ps(_mm512_mul_ps(fu, side_f), half);
+        let fs = floor_avx512(s);
+        let (i0, ku) = (small_int_avx512(fs), _mm512_sub_ps(s, fs));
+        let t = _mm512_sub_ps(_mm512_mul_ps(fv, side_f), half);
+        let ft = floor_avx512(t);
+        let (j0, kv) = (small_int_avx512(ft), _mm512_sub_ps(t, ft));
+        let mask = _mm512_sub_epi32(side, _mm512_set1_epi32(1));
+        let (c0, r0) = (_mm512_and_si512(i0, mask), _mm512_and_si512(j0, mask));
+        let n4 = _mm512_set1_epi32((4u32 << (2 * self.log2_side)) as i32);
+        let n2 = _mm512_set1_epi32((2u32 << self.log2_side) as i32);
+        let squares = _mm512_sub_epi32(n4, _mm512_slli_epi32::<2>(_mm512_mullo_epi32(side, side)));
+        let start = _mm512_add_epi32(
+            _mm512_slli_epi32::<1>(_mm512_mullo_epi32(squares, _mm512_set1_epi32(0xAAAA_AAABu32 as i32))),
+            _mm512_slli_epi32::<1>(_mm512_sub_epi32(n2, _mm512_slli_epi32::<1>(side))),
+        );
+        let pair = _mm512_add_epi32(_mm512_mullo_epi32(r0, _mm512_add_epi32(side, _mm512_set1_epi32(1))), c0);
+        let index = _mm512_add_epi32(start, _mm512_slli_epi32::<1>(pair));
+        let last = (self.pairs.len() - 4) as i32;
+        let index = _mm512_min_epu32(index, _mm512_set1_epi32(last));
+        // SAFETY: every lane of `index` is at most `pairs.len() - 4` (the `min`
+        // above): the 4 bytes read at it are inside `pairs`.
+        #[allow(unsafe_code, reason = "one gather of the texel pairs, the addresses clamped inside them")]
+        let quad = unsafe { _mm512_i32gather_epi32::<1>(index, self.pairs.as_ptr().cast::<i32>()) };
+        let byte = _mm512_set1_epi32(0xFF);
+        let t1 = _mm512_cvtepi32_ps(_mm512_and_si512(quad, byte));
+        let t2 = _mm512_cvtepi32_ps(_mm512_and_si512(_mm512_srli_epi32::<8>(quad), byte));
+        let t3 = _mm512_cvtepi32_ps(_mm512_and_si512(_mm512_srli_epi32::<16>(quad), byte));
+        let t4 = _mm512_cvtepi32_ps(_mm512_srli_epi32::<24>(quad));
+        let one = _mm512_set1_ps(1.0);
+        let (nku, nkv) = (_mm512_sub_ps(one, ku), _mm512_sub_ps(one, kv));
+        let left = _mm512_add_ps(_mm512_mul_ps(nkv, t1), _mm512_mul_ps(kv, t2));
+        let right = _mm512_add_ps(_mm512_mul_ps(nkv, t3), _mm512_mul_ps(kv, t4));
+        let value = _mm512_add_ps(_mm512_mul_ps(nku, left), _mm512_mul_ps(ku, right));
+        _mm512_div_ps(value, _mm512_set1_ps(TEXEL_ONE))
+    }
+}
+
+/// [`fract01`] of sixteen values in an AVX-512 register.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+#[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
+fn fract01_avx512(x: __m512) -> __m512 {
+    let d = _mm512_sub_ps(x, floor_avx512(x));
+    _mm512_min_ps(_mm512_max_ps(d, _mm512_setzero_ps()), _mm512_set1_ps(1.0))
 }
 
 /// [`fract01`] of eight values in an AVX2 register (`maxps` returns its second
@@ -927,9 +1014,34 @@ mod tests {
         std::is_x86_feature_detected!("avx2").then(|| unsafe { run(map, u, v, footprint) })
     }
 
+    /// Sixteen lanes of [`TextureMap::sample_avx512`], where the processor has
+    /// AVX-512F: the eight points twice, the second time in reverse order.
+    #[cfg(target_arch = "x86_64")]
+    fn sample_avx512_lanes(map: &TextureMap, u: &[f32; 8], v: &[f32; 8], footprint: &[f32; 8]) -> Option<[f32; 16]> {
+        #[target_feature(enable = "avx512f")]
+        #[allow(unsafe_code, reason = "loads and a store of arrays of a register's size")]
+        fn run(map: &TextureMap, u: &[f32; 16], v: &[f32; 16], footprint: &[f32; 16]) -> [f32; 16] {
+            let mut out = [0.0f32; 16];
+            // SAFETY: each array is 16 `f32`, the 64 bytes each load or store touches.
+            unsafe {
+                let t = map.sample_avx512(
+                    _mm512_loadu_ps(u.as_ptr()),
+                    _mm512_loadu_ps(v.as_ptr()),
+                    _mm512_loadu_ps(footprint.as_ptr()),
+                );
+                _mm512_storeu_ps(out.as_mut_ptr(), t);
+            }
+            out
+        }
+        let twice = |x: &[f32; 8]| -> [f32; 16] { std::array::from_fn(|l| if l < 8 { x[l] } else { x[15 - l] }) };
+        // SAFETY: the processor has AVX-512F.
+        #[allow(unsafe_code, reason = "a test of the AVX-512 copy, after detection")]
+        std::is_x86_feature_detected!("avx512f").then(|| unsafe { run(map, &twice(u), &twice(v), &twice(footprint)) })
+    }
+
     /// Every path of the texture unit against [`plain_sample`], bit for bit, at
     /// eight points: [`TextureMap::sample`], [`TextureMap::sample_lanes`] by 8 and
-    /// by 4, and the AVX2 copy where there is AVX2.
+    /// by 4, and the AVX2 and AVX-512 copies where the processor has them.
     fn check_sampling(map: &TextureMap, u: &[f32; 8], v: &[f32; 8], footprint: &[f32; 8]) {
         let eight = map.sample_lanes(u, v, footprint);
         let half = |x: &[f32; 8], h: usize| -> [f32; LANES] { std::array::from_fn(|l| x[LANES * h + l]) };
@@ -938,6 +1050,10 @@ mod tests {
         let avx2 = sample_avx2_lanes(map, u, v, footprint);
         #[cfg(not(target_arch = "x86_64"))]
         let avx2: Option<[f32; 8]> = None;
+        #[cfg(target_arch = "x86_64")]
+        let avx512 = sample_avx512_lanes(map, u, v, footprint);
+        #[cfg(not(target_arch = "x86_64"))]
+        let avx512: Option<[f32; 16]> = None;
         for l in 0..8 {
             let expect = plain_sample(map, u[l], v[l], footprint[l]).to_bits();
             let at = format!("{map:?} u {} v {} fp {}", u[l], v[l], footprint[l]);
@@ -946,6 +1062,10 @@ mod tests {
             assert_eq!(four[l / LANES][l % LANES].to_bits(), expect, "{at}: 4 lanes");
             if let Some(avx2) = avx2 {
                 assert_eq!(avx2[l].to_bits(), expect, "{at}: AVX2");
+            }
+            if let Some(avx512) = avx512 {
+                assert_eq!(avx512[l].to_bits(), expect, "{at}: AVX-512");
+                assert_eq!(avx512[15 - l].to_bits(), expect, "{at}: AVX-512, upper lanes");
             }
         }
     }
