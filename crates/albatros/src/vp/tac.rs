@@ -219,14 +219,7 @@ impl TacRom {
         let s = _mm512_min_ps(_mm512_max_ps(s, _mm512_setzero_ps()), _mm512_set1_ps(full as f32));
         let k = _mm512_min_epu32(small_int_avx512(floor_avx512(s)), _mm512_set1_epi32(full as i32));
         let t = _mm512_sub_ps(s, _mm512_cvtepi32_ps(k));
-        debug_assert!(self.fog.len() == full as usize + 2);
-        // SAFETY: every lane of `k` is at most `full` (the `min` above), and the
-        // table holds `full + 2` entries: `k` and `k + 1` are inside it.
-        #[allow(unsafe_code, reason = "gathers from the ROM, the addresses clamped inside it")]
-        let (a, b) = unsafe {
-            let table = self.fog.as_ptr();
-            (_mm512_i32gather_ps::<4>(k, table), _mm512_i32gather_ps::<4>(k, table.add(1)))
-        };
+        let (a, b) = entries_avx512(&self.fog[..], k);
         _mm512_add_ps(a, _mm512_mul_ps(t, _mm512_sub_ps(b, a)))
     }
 
@@ -250,13 +243,7 @@ impl TacRom {
         );
         let t = _mm512_cvtepi32_ps(_mm512_and_si512(bits, _mm512_set1_epi32((1 << low_bits) - 1)));
         let t = _mm512_mul_ps(t, _mm512_set1_ps(1.0 / (1u32 << low_bits) as f32));
-        // SAFETY: every lane of `k` is 8 bits (the mask above), at most 255, and
-        // the table holds 257 entries: `k` and `k + 1` are inside it.
-        #[allow(unsafe_code, reason = "gathers from the ROM, the addresses masked inside it")]
-        let (a, b) = unsafe {
-            let table = self.log2.as_ptr();
-            (_mm512_i32gather_ps::<4>(k, table), _mm512_i32gather_ps::<4>(k, table.add(1)))
-        };
+        let (a, b) = entries_avx512(&self.log2, k);
         _mm512_add_ps(exponent, _mm512_add_ps(a, _mm512_mul_ps(t, _mm512_sub_ps(b, a))))
     }
 
@@ -301,6 +288,33 @@ pub(crate) fn small_int_avx2(x: __m256) -> __m256i {
         _mm256_castps_si256(_mm256_add_ps(x, _mm256_set1_ps(MAGIC))),
         _mm256_set1_epi32(MAGIC.to_bits() as i32),
     )
+}
+
+/// Entries `k` and `k + 1` of a ROM for sixteen lanes of `k` (each lane at most
+/// `table.len() - 2`, which the callers' clamps and masks ensure; clamped here too,
+/// so that no lane reads outside the table). Both are read at once, as one 8-byte
+/// gather per lane, in two gathers of 8 lanes, then split into the even and the
+/// odd `f32`: half the gathered elements of two 4-byte gathers of 16.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+#[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
+fn entries_avx512(table: &[f32], k: __m512i) -> (__m512, __m512) {
+    let k = _mm512_min_epu32(k, _mm512_set1_epi32(table.len() as i32 - 2));
+    // SAFETY: every lane of `k` is at most `table.len() - 2` (the `min` above):
+    // the 8 bytes read at entry `k` are entries `k` and `k + 1`, inside the table.
+    #[allow(unsafe_code, reason = "gathers from a ROM, the addresses clamped inside it")]
+    let (low, high) = unsafe {
+        let at = table.as_ptr().cast::<f64>();
+        (
+            _mm512_i32gather_pd::<4>(_mm512_castsi512_si256(k), at),
+            _mm512_i32gather_pd::<4>(_mm512_extracti64x4_epi64::<1>(k), at),
+        )
+    };
+    let (low, high) = (_mm512_castpd_ps(low), _mm512_castpd_ps(high));
+    let even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
+    let odd = _mm512_add_epi32(even, _mm512_set1_epi32(1));
+    (_mm512_permutex2var_ps(low, even, high), _mm512_permutex2var_ps(low, odd, high))
 }
 
 /// [`small_int`] of sixteen values in an AVX-512 register.
