@@ -96,13 +96,29 @@ impl<'a> ColorComputers<'a> {
         out: &mut [Vec3; 16],
         counters: &mut Counters,
     ) {
+        self.shade_cell(poly, vis, out);
+        if STATS {
+            let visible = crate::model::stats::visible_pixels(&vis.sets);
+            counters.count_cc_cell(visible, self.drawn_texture(poly));
+        }
+    }
+
+    /// Whether `poly` has a texture whose map exists (a texture whose map is
+    /// missing is not drawn: the face keeps its colour).
+    fn drawn_texture(&self, poly: &FramePolygon) -> bool {
+        poly.texture.as_ref().is_some_and(|t| self.textures.get(t.map).is_some())
+    }
+
+    /// [`Self::shade`]'s colours by the best copy the processor runs. (Not generic
+    /// over the counting: one copy of each, the groups inlined into it.)
+    fn shade_cell(&self, poly: &FramePolygon, vis: &Visible, out: &mut [Vec3; 16]) {
         #[cfg(target_arch = "x86_64")]
         if std::is_x86_feature_detected!("avx512f") {
             // SAFETY: `shade_avx512` only needs AVX-512F, which the processor was
             // just found to have.
             #[allow(unsafe_code, reason = "the one call of a function compiled for AVX-512, after detection")]
             unsafe {
-                return self.shade_avx512::<STATS>(poly, vis, out, counters);
+                return self.shade_avx512(poly, vis, out);
             }
         }
         #[cfg(target_arch = "x86_64")]
@@ -111,10 +127,10 @@ impl<'a> ColorComputers<'a> {
             // found to have.
             #[allow(unsafe_code, reason = "the one call of a function compiled for AVX2, after detection")]
             unsafe {
-                return self.shade_avx2::<STATS>(poly, vis, out, counters);
+                return self.shade_avx2(poly, vis, out);
             }
         }
-        self.shade_scalar::<STATS>(poly, vis, out, counters)
+        self.shade_scalar(poly, vis, out)
     }
 
     /// [`Self::shade`] in explicit AVX2, in groups of [`AVX2_LANES`] pixels (two
@@ -124,13 +140,7 @@ impl<'a> ColorComputers<'a> {
     /// (Rust neither fuses nor reorders float operations), so the same bits.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn shade_avx2<const STATS: bool>(
-        &self,
-        poly: &FramePolygon,
-        vis: &Visible,
-        out: &mut [Vec3; 16],
-        counters: &mut Counters,
-    ) {
+    fn shade_avx2(&self, poly: &FramePolygon, vis: &Visible, out: &mut [Vec3; 16]) {
         const N: usize = AVX2_LANES;
         let visible = visible_avx2(&vis.sets);
         let cell = CellShader::new(self, poly, vis);
@@ -168,9 +178,6 @@ impl<'a> ColorComputers<'a> {
             }
         }
         cell.groups_avx2(&groups[..group_count], &wanted, out);
-        if STATS {
-            counters.count_cc_cell(visible, cell.texture.is_some());
-        }
     }
 
     /// [`Self::shade`] in explicit AVX-512: the whole cell as one group of 16
@@ -179,19 +186,9 @@ impl<'a> ColorComputers<'a> {
     /// dependent operations per cell where AVX2 has one per half.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
-    fn shade_avx512<const STATS: bool>(
-        &self,
-        poly: &FramePolygon,
-        vis: &Visible,
-        out: &mut [Vec3; 16],
-        counters: &mut Counters,
-    ) {
-        let visible = visible_avx2(&vis.sets);
+    fn shade_avx512(&self, poly: &FramePolygon, vis: &Visible, out: &mut [Vec3; 16]) {
         let cell = CellShader::new(self, poly, vis);
         store_cell(cell.group_avx512(), out);
-        if STATS {
-            counters.count_cc_cell(visible, cell.texture.is_some());
-        }
     }
 
     /// [`Self::shade_lanes`] compiled for AVX2, in groups of [`AVX2_LANES`]: the
@@ -199,26 +196,14 @@ impl<'a> ColorComputers<'a> {
     /// the same bits as the explicit copy on any processor with AVX2.
     #[cfg(all(test, target_arch = "x86_64"))]
     #[target_feature(enable = "avx2")]
-    fn shade_lanes_avx2<const STATS: bool>(
-        &self,
-        poly: &FramePolygon,
-        vis: &Visible,
-        out: &mut [Vec3; 16],
-        counters: &mut Counters,
-    ) {
-        self.shade_lanes::<STATS, AVX2_LANES>(poly, vis, out, counters)
+    fn shade_lanes_avx2(&self, poly: &FramePolygon, vis: &Visible, out: &mut [Vec3; 16]) {
+        self.shade_lanes::<AVX2_LANES>(poly, vis, out)
     }
 
     /// [`Self::shade`] for the build's target (x86-64-v2: SSE4.2) whatever the
     /// processor, in groups of [`LANES`] pixels (one 128-bit register).
-    pub fn shade_scalar<const STATS: bool>(
-        &self,
-        poly: &FramePolygon,
-        vis: &Visible,
-        out: &mut [Vec3; 16],
-        counters: &mut Counters,
-    ) {
-        self.shade_lanes::<STATS, LANES>(poly, vis, out, counters)
+    pub fn shade_scalar(&self, poly: &FramePolygon, vis: &Visible, out: &mut [Vec3; 16]) {
+        self.shade_lanes::<LANES>(poly, vis, out)
     }
 
     /// [`Self::shade`] in groups of `N` pixels (4, 8 or 16: one, two or four rows
@@ -230,13 +215,7 @@ impl<'a> ColorComputers<'a> {
     /// repeating its last pixel. A hidden pixel's lane is computed like the others
     /// and left unused: no branch per lane.
     #[inline(always)]
-    fn shade_lanes<const STATS: bool, const N: usize>(
-        &self,
-        poly: &FramePolygon,
-        vis: &Visible,
-        out: &mut [Vec3; 16],
-        counters: &mut Counters,
-    ) {
+    fn shade_lanes<const N: usize>(&self, poly: &FramePolygon, vis: &Visible, out: &mut [Vec3; 16]) {
         const { assert!(N == 4 || N == 8 || N == 16) };
         let visible = crate::model::stats::visible_pixels(&vis.sets);
         let cell = CellShader::new(self, poly, vis);
@@ -272,9 +251,6 @@ impl<'a> ColorComputers<'a> {
                     out[i] = Vec3::new(c[0][l], c[1][l], c[2][l]);
                 }
             }
-        }
-        if STATS {
-            counters.count_cc_cell(visible, cell.texture.is_some());
         }
     }
 }
@@ -659,7 +635,7 @@ impl ColorComputers<'_> {
     /// `shade` itself, at one pixel, so it is the very value every pixel would get
     /// (zero's sign aside, which no VB mode keeps apart).
     pub fn flat_color(&self, poly: &FramePolygon) -> Option<Vec3> {
-        let drawn_texture = poly.texture.as_ref().is_some_and(|t| self.textures.get(t.map).is_some());
+        let drawn_texture = self.drawn_texture(poly);
         let still = |f: &crate::frame::FracLin| f.a == 0.0 && f.b == 0.0;
         if drawn_texture || !still(&poly.inv_z) || !still(&poly.intensity) {
             return None;
@@ -841,7 +817,7 @@ mod tests {
             cc.shade::<false>(&poly, &vis, &mut out, &mut Counters::new(9));
             // The build target's code, whatever the processor has.
             let mut scalar = [unset; 16];
-            cc.shade_scalar::<false>(&poly, &vis, &mut scalar, &mut Counters::new(9));
+            cc.shade_scalar(&poly, &vis, &mut scalar);
             // Each x86-64 copy the processor can run (else the target's colours
             // again): the compiler's AVX2 code of the portable lanes, the explicit
             // AVX2 copy, the AVX-512 copy.
@@ -851,8 +827,8 @@ mod tests {
                 // SAFETY: the processor has AVX2.
                 #[allow(unsafe_code, reason = "a test of the AVX2 copies, after detection")]
                 unsafe {
-                    cc.shade_lanes_avx2::<false>(&poly, &vis, &mut lanes_avx2, &mut Counters::new(9));
-                    cc.shade_avx2::<false>(&poly, &vis, &mut avx2, &mut Counters::new(9));
+                    cc.shade_lanes_avx2(&poly, &vis, &mut lanes_avx2);
+                    cc.shade_avx2(&poly, &vis, &mut avx2);
                 }
             }
             #[cfg(target_arch = "x86_64")]
@@ -860,7 +836,7 @@ mod tests {
                 // SAFETY: the processor has AVX-512F.
                 #[allow(unsafe_code, reason = "a test of the AVX-512 copy, after detection")]
                 unsafe {
-                    cc.shade_avx512::<false>(&poly, &vis, &mut avx512, &mut Counters::new(9))
+                    cc.shade_avx512(&poly, &vis, &mut avx512)
                 };
             }
             // The visible pixels; what the others get is unspecified.
