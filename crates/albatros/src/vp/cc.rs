@@ -84,7 +84,7 @@ impl<'a> ColorComputers<'a> {
     /// writes for pixels with no visible subpixel is unspecified).
     ///
     /// The cell's pixels are computed in groups side by side, as arrays that
-    /// vectorise ([`Self::shade_lanes`]), so that a cell's hidden pixels cost little
+    /// vectorise (the copies below), so that a cell's hidden pixels cost little
     /// (a cell of an edge or of a small polygon has few visible pixels: about 5 of 16
     /// on the default scene). Every pixel gets the same operations in the same order
     /// as one computed alone would (the stepping `Q + A dx + B dy`, the reciprocal,

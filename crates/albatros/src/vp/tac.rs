@@ -102,7 +102,7 @@ impl TacRom {
     /// [`Self::fog`] of `N` values side by side, bit for bit lane by lane, laid out
     /// as arrays over the lanes so that the arithmetic vectorises; only the two ROM
     /// reads per lane go one by one. The floor is taken as `floor` and
-    /// [`small_int`] (where `s as i32` costs a branch per lane for Rust's saturating
+    /// `small_int` (where `s as i32` costs a branch per lane for Rust's saturating
     /// cast); `s` is in `0..=4096`, so both give the same integer, and `t` is
     /// formed from that integer as in [`Self::fog`].
     #[inline(always)]
