@@ -17,17 +17,27 @@
 //! The visible pixels of a cell are dealt to four channels by their position in each
 //! 2 x 2 quad (channel `(x & 1) + 2 (y & 1)`), so that an edge's pixels spread evenly.
 //!
-//! On a processor with AVX2 the same code runs compiled for it (detected at run time;
-//! the build itself targets x86-64-v2): Rust neither fuses nor reorders float
-//! operations, so the bits are the same, and the tests compare both with the plain
-//! per-pixel definition.
+//! Three copies of the same arithmetic, chosen at run time (the build itself targets
+//! x86-64-v2): the portable one, arrays of 4 lanes that the compiler vectorises; with
+//! AVX2, explicit 256-bit code, 8 pixels (half a cell) per group; with AVX-512F,
+//! 512-bit code, the whole cell as one group of 16 (on Zen 4 the cell's operations
+//! are one chain of dependent steps rather than two: shade's share of a default
+//! frame's time 14 % lower than AVX2's). In the explicit copies the reads of the
+//! TAC's ROMs and of the texture map are gathers, the map's four texels of a
+//! bilinear look-up one 4-byte read ([`super::texture`]'s pair layout). Rust neither
+//! fuses nor reorders float operations, and each copy does the same operations in
+//! the same order, so the bits are the same; the tests compare every copy the
+//! processor can run with the plain per-pixel definition.
+
+#[cfg(target_arch = "x86_64")]
+use std::arch::x86_64::*;
 
 use glam::Vec3;
 
 use super::spp::Visible;
 use super::tac::TacRom;
 use super::texture::{TextureMap, TextureMaps, LANES};
-use crate::frame::{FrameList, FramePolygon, PolyTexture};
+use crate::frame::{FracLin, FrameList, FramePolygon, PolyTexture};
 use crate::model::stats::Counters;
 
 /// Number of colour channels (P1: four).
@@ -73,14 +83,12 @@ impl<'a> ColorComputers<'a> {
     /// Colours the visible pixels of one cell of polygon `poly` into `out` (what it
     /// writes for pixels with no visible subpixel is unspecified).
     ///
-    /// The visible pixels are packed into groups of [`LANES`] and each group is
-    /// computed side by side, as arrays that vectorise, so that a cell's hidden
-    /// pixels cost nothing (a cell of an edge or of a small polygon has few visible
-    /// pixels: about 5 of 16 on the default scene). Every pixel gets the same
-    /// operations in the same order as one computed alone would (the stepping
-    /// `Q + A dx + B dy`, the reciprocal, the products), so the colours are bit for
-    /// bit those of a pixel-by-pixel loop. Only `exp` (and the texture unit's reads
-    /// and `log2`) go pixel by pixel.
+    /// The cell's pixels are computed in groups side by side, as arrays that
+    /// vectorise (the copies below), so that a cell's hidden pixels cost little
+    /// (a cell of an edge or of a small polygon has few visible pixels: about 5 of 16
+    /// on the default scene). Every pixel gets the same operations in the same order
+    /// as one computed alone would (the stepping `Q + A dx + B dy`, the reciprocal,
+    /// the products), so the colours are bit for bit those of a pixel-by-pixel loop.
     pub fn shade<const STATS: bool>(
         &self,
         poly: &FramePolygon,
@@ -88,124 +96,534 @@ impl<'a> ColorComputers<'a> {
         out: &mut [Vec3; 16],
         counters: &mut Counters,
     ) {
+        self.shade_cell(poly, vis, out);
+        if STATS {
+            let visible = crate::model::stats::visible_pixels(&vis.sets);
+            counters.count_cc_cell(visible, self.drawn_texture(poly));
+        }
+    }
+
+    /// Whether `poly` has a texture whose map exists (a texture whose map is
+    /// missing is not drawn: the face keeps its colour).
+    fn drawn_texture(&self, poly: &FramePolygon) -> bool {
+        poly.texture.as_ref().is_some_and(|t| self.textures.get(t.map).is_some())
+    }
+
+    /// [`Self::shade`]'s colours by the best copy the processor runs. (Not generic
+    /// over the counting: one copy of each, the groups inlined into it.)
+    fn shade_cell(&self, poly: &FramePolygon, vis: &Visible, out: &mut [Vec3; 16]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx512f") {
+            // SAFETY: `shade_avx512` only needs AVX-512F, which the processor was
+            // just found to have.
+            #[allow(unsafe_code, reason = "the one call of a function compiled for AVX-512, after detection")]
+            unsafe {
+                return self.shade_avx512(poly, vis, out);
+            }
+        }
         #[cfg(target_arch = "x86_64")]
         if std::is_x86_feature_detected!("avx2") {
             // SAFETY: `shade_avx2` only needs AVX2, which the processor was just
             // found to have.
             #[allow(unsafe_code, reason = "the one call of a function compiled for AVX2, after detection")]
             unsafe {
-                return self.shade_avx2::<STATS>(poly, vis, out, counters);
+                return self.shade_avx2(poly, vis, out);
             }
         }
-        self.shade_scalar::<STATS>(poly, vis, out, counters)
+        self.shade_scalar(poly, vis, out)
     }
 
-    /// [`Self::shade`] compiled for AVX2: the same operations on the same values (Rust
-    /// neither fuses nor reorders float operations, whatever the target), so the same
-    /// bits; the compiler lays the lanes' arithmetic out in 256-bit registers. Measured
-    /// on default at 1920 x 1080: colour + VB 47.1 -> 43.6 ms, city 27.9 -> 26.9 ms.
+    /// [`Self::shade`] in explicit AVX2, in groups of [`AVX2_LANES`] pixels (two
+    /// rows of the cell, or eight packed pixels) in 256-bit registers
+    /// ([`CellShader::group_avx2`]), the ROMs' and the texture map's reads as
+    /// gathers: the same operations on the same values as [`Self::shade_lanes`]
+    /// (Rust neither fuses nor reorders float operations), so the same bits.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn shade_avx2<const STATS: bool>(
-        &self,
-        poly: &FramePolygon,
-        vis: &Visible,
-        out: &mut [Vec3; 16],
-        counters: &mut Counters,
-    ) {
-        self.shade_scalar::<STATS>(poly, vis, out, counters)
-    }
-
-    /// [`Self::shade`] for the build's target (x86-64-v2: SSE4.2) whatever the
-    /// processor; inlined into the AVX2 copy too.
-    #[inline(always)]
-    pub fn shade_scalar<const STATS: bool>(
-        &self,
-        poly: &FramePolygon,
-        vis: &Visible,
-        out: &mut [Vec3; 16],
-        counters: &mut Counters,
-    ) {
-        let visible = crate::model::stats::visible_pixels(&vis.sets);
-        // Q: centre of the cell's pixel (1, 1).
-        let (qx, qy) = (vis.px as f32 + 1.5, vis.py as f32 + 1.5);
-        let z_q = poly.inv_z.eval(qx, qy);
-        let i_q = poly.intensity.eval(qx, qy);
-        // A texture whose map is missing is not drawn: the face keeps its colour.
-        let texture: Option<(&PolyTexture, &TextureMap)> =
-            poly.texture.as_ref().and_then(|t| Some((t, self.textures.get(t.map)?)));
-        let (u_q, v_q) = texture.map_or((0.0, 0.0), |(t, _)| (t.u.eval(qx, qy), t.v.eval(qx, qy)));
-        let fog = self.fog_color.to_array();
-        let rom = TacRom::get();
-        // One group of pixels side by side, `dx`, `dy` from Q per lane (lanes not
-        // wanted, a packed group's spares or a row's hidden pixels, are computed
-        // like the others: no branch per lane).
-        let group = |dx: [f32; LANES], dy: [f32; LANES]| -> [[f32; LANES]; 3] {
-            // `Z` and intensity, stepped from Q (P2 fig. 2).
-            let mut z = [0.0f32; LANES];
-            let mut intensity = [0.0f32; LANES];
-            for l in 0..LANES {
-                let inv_z = z_q + poly.inv_z.a * dx[l] + poly.inv_z.b * dy[l];
-                z[l] = 1.0 / inv_z.max(f32::MIN_POSITIVE);
-                intensity[l] = ((i_q + poly.intensity.a * dx[l] + poly.intensity.b * dy[l]) * z[l]).max(0.0);
-            }
-            // C0, per component.
-            let c0: [[f32; LANES]; 3] = match texture {
-                Some((t, map)) => {
-                    let mut u = [0.0f32; LANES];
-                    let mut v = [0.0f32; LANES];
-                    let mut footprint = [0.0f32; LANES];
-                    for l in 0..LANES {
-                        u[l] = (u_q + t.u.a * dx[l] + t.u.b * dy[l]) * z[l];
-                        v[l] = (v_q + t.v.a * dx[l] + t.v.b * dy[l]) * z[l];
-                        footprint[l] = self.footprint_scale * z[l] * z[l] * t.par;
-                    }
-                    let m = map.sample_lanes(&u, &v, &footprint);
-                    let (c1, c2) = (t.color1.to_array(), t.color2.to_array());
-                    std::array::from_fn(|c| std::array::from_fn(|l| c1[c] * m[l] + c2[c] * (1.0 - m[l])))
-                }
-                None => poly.color.to_array().map(|c| [c; LANES]),
-            };
-            // Fog, `exp(-Z / Z0)` from the TAC's ROM; none is `f = 1`.
-            let f = if self.inv_visibility != 0.0 {
-                rom.fog_lanes(&z.map(|z| z * self.inv_visibility))
-            } else {
-                [1.0f32; LANES]
-            };
-            std::array::from_fn(|c| std::array::from_fn(|l| c0[c][l] * intensity[l] * f[l] + fog[c] * (1.0 - f[l])))
-        };
+    fn shade_avx2(&self, poly: &FramePolygon, vis: &Visible, out: &mut [Vec3; 16]) {
+        const N: usize = AVX2_LANES;
+        let visible = visible_avx2(&vis.sets);
+        let cell = CellShader::new(self, poly, vis);
         let count = visible.count_ones() as usize;
-        if count > WHOLE_ROWS_FROM {
-            // Most of the cell: its four rows as the groups, with no packing (a
-            // hidden pixel's lane is computed and left unused).
-            for row in 0..CELL_ROWS {
-                let c = group(ROW_DX, [row as f32 - 1.0; LANES]);
-                for l in 0..LANES {
-                    out[LANES * row + l] = Vec3::new(c[0][l], c[1][l], c[2][l]);
+        // The groups' pixels (`4 y + x` per lane) and how many of their lanes are
+        // wanted: the cell's halves with a visible pixel, or its visible pixels
+        // packed when they take fewer groups (a last group's spare lanes repeat
+        // its last pixel). One call of the group below, so that it is inlined
+        // with what the groups share hoisted.
+        let mut groups = [[0i32; N]; 2];
+        let mut wanted = [0usize; 2];
+        let mut group_count = 0;
+        let halves = [visible & 0xFF, visible >> N];
+        let live_halves = halves.iter().filter(|&&h| h != 0).count();
+        if live_halves <= count.div_ceil(N) {
+            for (b, &half) in halves.iter().enumerate() {
+                if half != 0 {
+                    groups[group_count] = std::array::from_fn(|l| (N * b + l) as i32);
+                    wanted[group_count] = N;
+                    group_count += 1;
                 }
             }
         } else {
-            // The visible pixels (`4 y + x`), packed; a last group's spare lanes
-            // repeat its last pixel.
+            let mut pixels = [0i32; 16];
+            let mut rest = visible;
+            for p in &mut pixels[..count] {
+                *p = rest.trailing_zeros() as i32;
+                rest &= rest - 1;
+            }
+            for (g, chunk) in pixels[..count].chunks(N).enumerate() {
+                let live = chunk.len();
+                groups[g] = std::array::from_fn(|l| chunk[l.min(live - 1)]);
+                wanted[g] = live;
+                group_count = g + 1;
+            }
+        }
+        cell.groups_avx2(&groups[..group_count], &wanted, out);
+    }
+
+    /// [`Self::shade`] in explicit AVX-512: the whole cell as one group of 16
+    /// lanes, lane `i` its pixel `i` (`4 y + x`), with no packing (a hidden
+    /// pixel's lane is computed and its colour unspecified). One chain of
+    /// dependent operations per cell where AVX2 has one per half.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn shade_avx512(&self, poly: &FramePolygon, vis: &Visible, out: &mut [Vec3; 16]) {
+        let cell = CellShader::new(self, poly, vis);
+        store_cell(cell.group_avx512(), out);
+    }
+
+    /// [`Self::shade_lanes`] compiled for AVX2, in groups of [`AVX2_LANES`]: the
+    /// compiler's vectorisation of the portable code, kept to test that it gives
+    /// the same bits as the explicit copy on any processor with AVX2.
+    #[cfg(all(test, target_arch = "x86_64"))]
+    #[target_feature(enable = "avx2")]
+    fn shade_lanes_avx2(&self, poly: &FramePolygon, vis: &Visible, out: &mut [Vec3; 16]) {
+        self.shade_lanes::<AVX2_LANES>(poly, vis, out)
+    }
+
+    /// [`Self::shade`] for the build's target (x86-64-v2: SSE4.2) whatever the
+    /// processor, in groups of [`LANES`] pixels (one 128-bit register).
+    pub fn shade_scalar(&self, poly: &FramePolygon, vis: &Visible, out: &mut [Vec3; 16]) {
+        self.shade_lanes::<LANES>(poly, vis, out)
+    }
+
+    /// [`Self::shade`] in groups of `N` pixels (4, 8 or 16: one, two or four rows
+    /// of the cell), inlined into each target's copy.
+    ///
+    /// A cell is coloured by its blocks of `N / 4` whole rows (the blocks with no
+    /// visible pixel skipped) when they are no more groups than its visible pixels
+    /// packed `N` to a group; else by the packed pixels, a last group's spare lanes
+    /// repeating its last pixel. A hidden pixel's lane is computed like the others
+    /// and left unused: no branch per lane.
+    #[inline(always)]
+    fn shade_lanes<const N: usize>(&self, poly: &FramePolygon, vis: &Visible, out: &mut [Vec3; 16]) {
+        const { assert!(N == 4 || N == 8 || N == 16) };
+        let visible = crate::model::stats::visible_pixels(&vis.sets);
+        let cell = CellShader::new(self, poly, vis);
+        let count = visible.count_ones() as usize;
+        let blocks = 16 / N;
+        let block_mask = (1u32 << N) - 1;
+        let live_blocks = (0..blocks).filter(|b| u32::from(visible) >> (N * b) & block_mask != 0).count();
+        if live_blocks <= count.div_ceil(N) {
+            for b in 0..blocks {
+                if u32::from(visible) >> (N * b) & block_mask == 0 {
+                    continue;
+                }
+                let dx: &[f32; N] = STEP_X[N * b..N * (b + 1)].try_into().expect("N lanes");
+                let dy: &[f32; N] = STEP_Y[N * b..N * (b + 1)].try_into().expect("N lanes");
+                let c = cell.group(dx, dy);
+                for l in 0..N {
+                    out[N * b + l] = Vec3::new(c[0][l], c[1][l], c[2][l]);
+                }
+            }
+        } else {
+            // The visible pixels (`4 y + x`), packed.
             let mut pixels = [0usize; 16];
             let mut rest = visible;
             for p in &mut pixels[..count] {
                 *p = rest.trailing_zeros() as usize;
                 rest &= rest - 1;
             }
-            for chunk in pixels[..count].chunks(LANES) {
+            for chunk in pixels[..count].chunks(N) {
                 let live = chunk.len();
-                let lane: [usize; LANES] = std::array::from_fn(|l| chunk[l.min(live - 1)]);
-                let c = group(lane.map(|i| STEP_X[i]), lane.map(|i| STEP_Y[i]));
+                let lane: [usize; N] = std::array::from_fn(|l| chunk[l.min(live - 1)]);
+                let c = cell.group(&lane.map(|i| STEP_X[i]), &lane.map(|i| STEP_Y[i]));
                 for (l, &i) in chunk.iter().enumerate() {
                     out[i] = Vec3::new(c[0][l], c[1][l], c[2][l]);
                 }
             }
         }
-        if STATS {
-            counters.count_cc_cell(visible, texture.is_some());
+    }
+}
+
+/// Pixels side by side in the AVX2 copy of the colour computers: two rows of a
+/// cell, eight `f32` in one 256-bit register.
+#[cfg(target_arch = "x86_64")]
+const AVX2_LANES: usize = 8;
+
+/// The colour computers' values for one cell of one polygon: the functions at the
+/// cell's point Q and what the groups of its pixels share.
+struct CellShader<'a> {
+    /// The polygon.
+    poly: &'a FramePolygon,
+    /// Its texture and map, if it has a texture whose map exists (a texture whose
+    /// map is missing is not drawn: the face keeps its colour).
+    texture: Option<(&'a PolyTexture, &'a TextureMap)>,
+    /// `1/Z` at Q.
+    z_q: f32,
+    /// Intensity (times `1/Z`) at Q.
+    i_q: f32,
+    /// `u`, `v` (times `1/Z`) at Q; zero with no texture.
+    u_q: f32,
+    v_q: f32,
+    /// `C_fog`.
+    fog: [f32; 3],
+    /// `1 / Z0`, zero for no fog.
+    inv_visibility: f32,
+    /// `2 delta`.
+    footprint_scale: f32,
+    /// The TAC's ROMs.
+    rom: &'static TacRom,
+}
+
+impl<'a> CellShader<'a> {
+    /// The values at Q, the centre of the cell's pixel (1, 1).
+    #[inline(always)]
+    fn new(cc: &ColorComputers<'a>, poly: &'a FramePolygon, vis: &Visible) -> Self {
+        let (qx, qy) = (vis.px as f32 + 1.5, vis.py as f32 + 1.5);
+        let texture = poly.texture.as_ref().and_then(|t| Some((t, cc.textures.get(t.map)?)));
+        let (u_q, v_q) = texture.map_or((0.0, 0.0), |(t, _)| (t.u.eval(qx, qy), t.v.eval(qx, qy)));
+        Self {
+            poly,
+            texture,
+            z_q: poly.inv_z.eval(qx, qy),
+            i_q: poly.intensity.eval(qx, qy),
+            u_q,
+            v_q,
+            fog: cc.fog_color.to_array(),
+            inv_visibility: cc.inv_visibility,
+            footprint_scale: cc.footprint_scale,
+            rom: TacRom::get(),
         }
     }
+
+    /// The colours of the pixels of `groups` (`4 y + x` per lane; the first
+    /// `wanted[g]` lanes of group `g` are written) into `out`: [`Self::group_avx2`]
+    /// for each, in one loop so that what the groups share is computed once.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn groups_avx2(&self, groups: &[[i32; AVX2_LANES]], wanted: &[usize; 2], out: &mut [Vec3; 16]) {
+        for (lanes, &wanted) in groups.iter().zip(wanted) {
+            let pixel =
+                _mm256_setr_epi32(lanes[0], lanes[1], lanes[2], lanes[3], lanes[4], lanes[5], lanes[6], lanes[7]);
+            let c = self.group_avx2(pixel);
+            if wanted == AVX2_LANES && lanes[0] % AVX2_LANES as i32 == 0 && lanes[AVX2_LANES - 1] == lanes[0] + 7 {
+                // Half a cell: its eight colours in place, whole.
+                store_half(c, out, lanes[0] as usize / AVX2_LANES);
+            } else {
+                let mut rgb = [[0.0f32; AVX2_LANES]; 3];
+                store_colors(c, &mut rgb);
+                for (l, &i) in lanes.iter().enumerate().take(wanted) {
+                    out[i as usize & 15] = Vec3::new(rgb[0][l], rgb[1][l], rgb[2][l]);
+                }
+            }
+        }
+    }
+
+    /// [`Self::group`] of the cell's 16 pixels (lane `i` pixel `i`) in AVX-512
+    /// registers, bit for bit: [`Self::group_avx2`] over the whole cell.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    #[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
+    fn group_avx512(&self) -> [__m512; 3] {
+        let poly = self.poly;
+        let dx = _mm512_setr_ps(
+            STEP_X[0], STEP_X[1], STEP_X[2], STEP_X[3], STEP_X[4], STEP_X[5], STEP_X[6], STEP_X[7], STEP_X[8],
+            STEP_X[9], STEP_X[10], STEP_X[11], STEP_X[12], STEP_X[13], STEP_X[14], STEP_X[15],
+        );
+        let dy = _mm512_setr_ps(
+            STEP_Y[0], STEP_Y[1], STEP_Y[2], STEP_Y[3], STEP_Y[4], STEP_Y[5], STEP_Y[6], STEP_Y[7], STEP_Y[8],
+            STEP_Y[9], STEP_Y[10], STEP_Y[11], STEP_Y[12], STEP_Y[13], STEP_Y[14], STEP_Y[15],
+        );
+        let one = _mm512_set1_ps(1.0);
+        let inv_z = step_avx512(self.z_q, &poly.inv_z, dx, dy);
+        let z = _mm512_div_ps(one, _mm512_max_ps(inv_z, _mm512_set1_ps(f32::MIN_POSITIVE)));
+        let intensity = _mm512_mul_ps(step_avx512(self.i_q, &poly.intensity, dx, dy), z);
+        let intensity = _mm512_max_ps(intensity, _mm512_setzero_ps());
+        let c0: [__m512; 3] = match self.texture {
+            Some((t, map)) => {
+                let u = _mm512_mul_ps(step_avx512(self.u_q, &t.u, dx, dy), z);
+                let v = _mm512_mul_ps(step_avx512(self.v_q, &t.v, dx, dy), z);
+                let footprint = _mm512_mul_ps(
+                    _mm512_mul_ps(_mm512_mul_ps(_mm512_set1_ps(self.footprint_scale), z), z),
+                    _mm512_set1_ps(t.par),
+                );
+                let m = map.sample_avx512(u, v, footprint);
+                let not_m = _mm512_sub_ps(one, m);
+                let (c1, c2) = (t.color1.to_array(), t.color2.to_array());
+                [0, 1, 2].map(|c| {
+                    _mm512_add_ps(_mm512_mul_ps(_mm512_set1_ps(c1[c]), m), _mm512_mul_ps(_mm512_set1_ps(c2[c]), not_m))
+                })
+            }
+            None => {
+                let c = poly.color.to_array();
+                [_mm512_set1_ps(c[0]), _mm512_set1_ps(c[1]), _mm512_set1_ps(c[2])]
+            }
+        };
+        let f = if self.inv_visibility != 0.0 {
+            self.rom.fog_avx512(_mm512_mul_ps(z, _mm512_set1_ps(self.inv_visibility)))
+        } else {
+            one
+        };
+        let not_f = _mm512_sub_ps(one, f);
+        let fog = self.fog;
+        [0, 1, 2].map(|c| {
+            _mm512_add_ps(
+                _mm512_mul_ps(_mm512_mul_ps(c0[c], intensity), f),
+                _mm512_mul_ps(_mm512_set1_ps(fog[c]), not_f),
+            )
+        })
+    }
+
+    /// [`Self::group`] of eight pixels (`4 y + x` per lane) in AVX2 registers,
+    /// bit for bit: the same operations in the same order.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn group_avx2(&self, pixel: __m256i) -> [__m256; 3] {
+        let poly = self.poly;
+        // `dx = x - 1`, `dy = y - 1`: Q is pixel (1, 1).
+        let one_i = _mm256_set1_epi32(1);
+        let dx = _mm256_cvtepi32_ps(_mm256_sub_epi32(_mm256_and_si256(pixel, _mm256_set1_epi32(3)), one_i));
+        let dy = _mm256_cvtepi32_ps(_mm256_sub_epi32(_mm256_srli_epi32::<2>(pixel), one_i));
+        let one = _mm256_set1_ps(1.0);
+        // `Z` and intensity; `max` with the constant second: `maxps` gives it for
+        // a NaN, as `f32::max` does.
+        let inv_z = step_avx2(self.z_q, &poly.inv_z, dx, dy);
+        let z = _mm256_div_ps(one, _mm256_max_ps(inv_z, _mm256_set1_ps(f32::MIN_POSITIVE)));
+        let intensity = _mm256_mul_ps(step_avx2(self.i_q, &poly.intensity, dx, dy), z);
+        let intensity = _mm256_max_ps(intensity, _mm256_setzero_ps());
+        let c0: [__m256; 3] = match self.texture {
+            Some((t, map)) => {
+                let u = _mm256_mul_ps(step_avx2(self.u_q, &t.u, dx, dy), z);
+                let v = _mm256_mul_ps(step_avx2(self.v_q, &t.v, dx, dy), z);
+                let footprint = _mm256_mul_ps(
+                    _mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(self.footprint_scale), z), z),
+                    _mm256_set1_ps(t.par),
+                );
+                let m = map.sample_avx2(u, v, footprint);
+                let not_m = _mm256_sub_ps(one, m);
+                let (c1, c2) = (t.color1.to_array(), t.color2.to_array());
+                [0, 1, 2].map(|c| {
+                    _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(c1[c]), m), _mm256_mul_ps(_mm256_set1_ps(c2[c]), not_m))
+                })
+            }
+            None => {
+                let c = poly.color.to_array();
+                [_mm256_set1_ps(c[0]), _mm256_set1_ps(c[1]), _mm256_set1_ps(c[2])]
+            }
+        };
+        let f = if self.inv_visibility != 0.0 {
+            self.rom.fog_avx2(_mm256_mul_ps(z, _mm256_set1_ps(self.inv_visibility)))
+        } else {
+            one
+        };
+        let not_f = _mm256_sub_ps(one, f);
+        let fog = self.fog;
+        [0, 1, 2].map(|c| {
+            _mm256_add_ps(
+                _mm256_mul_ps(_mm256_mul_ps(c0[c], intensity), f),
+                _mm256_mul_ps(_mm256_set1_ps(fog[c]), not_f),
+            )
+        })
+    }
+
+    /// The colours of `N` pixels side by side, `dx`, `dy` from Q per lane, as
+    /// `[r, g, b]` arrays over the lanes.
+    #[inline(always)]
+    fn group<const N: usize>(&self, dx: &[f32; N], dy: &[f32; N]) -> [[f32; N]; 3] {
+        let poly = self.poly;
+        // `Z` and intensity, stepped from Q (P2 fig. 2).
+        let mut z = [0.0f32; N];
+        let mut intensity = [0.0f32; N];
+        for l in 0..N {
+            let inv_z = self.z_q + poly.inv_z.a * dx[l] + poly.inv_z.b * dy[l];
+            z[l] = 1.0 / inv_z.max(f32::MIN_POSITIVE);
+            intensity[l] = ((self.i_q + poly.intensity.a * dx[l] + poly.intensity.b * dy[l]) * z[l]).max(0.0);
+        }
+        // C0, per component.
+        let c0: [[f32; N]; 3] = match self.texture {
+            Some((t, map)) => {
+                let mut u = [0.0f32; N];
+                let mut v = [0.0f32; N];
+                let mut footprint = [0.0f32; N];
+                for l in 0..N {
+                    u[l] = (self.u_q + t.u.a * dx[l] + t.u.b * dy[l]) * z[l];
+                    v[l] = (self.v_q + t.v.a * dx[l] + t.v.b * dy[l]) * z[l];
+                    footprint[l] = self.footprint_scale * z[l] * z[l] * t.par;
+                }
+                let m = map.sample_lanes(&u, &v, &footprint);
+                let (c1, c2) = (t.color1.to_array(), t.color2.to_array());
+                std::array::from_fn(|c| std::array::from_fn(|l| c1[c] * m[l] + c2[c] * (1.0 - m[l])))
+            }
+            None => poly.color.to_array().map(|c| [c; N]),
+        };
+        // Fog, `exp(-Z / Z0)` from the TAC's ROM; none is `f = 1`.
+        let f = if self.inv_visibility != 0.0 {
+            self.rom.fog_lanes(&z.map(|z| z * self.inv_visibility))
+        } else {
+            [1.0f32; N]
+        };
+        let fog = self.fog;
+        std::array::from_fn(|c| std::array::from_fn(|l| c0[c][l] * intensity[l] * f[l] + fog[c] * (1.0 - f[l])))
+    }
+}
+
+/// [`crate::model::stats::visible_pixels`] in AVX2: a bit per pixel with a
+/// visible subpixel, from one compare of the cell's 16 sets.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn visible_avx2(sets: &[u16; 16]) -> u16 {
+    // SAFETY: `sets` is 16 `u16`, the 32 bytes the load reads.
+    #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
+    let sets = unsafe { _mm256_loadu_si256(sets.as_ptr().cast()) };
+    let hidden = _mm256_cmpeq_epi16(sets, _mm256_setzero_si256());
+    // Each pixel's 16-bit compare to one byte, in pixel order.
+    let bytes = _mm_packs_epi16(_mm256_castsi256_si128(hidden), _mm256_extracti128_si256::<1>(hidden));
+    !(_mm_movemask_epi8(bytes) as u16)
+}
+
+/// The colours of pixels `8 half .. 8 half + 8` of a cell, `[r, g, b]` over the
+/// lanes, into `out` as its `Vec3`s (`x, y, z` in a row, 12 bytes each): a
+/// transpose in registers and three 32-byte stores.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn store_half([r, g, b]: [__m256; 3], out: &mut [Vec3; 16], half: usize) {
+    const { assert!(size_of::<Vec3>() == 12 && size_of::<[Vec3; 16]>() == 192) };
+    // In each 128-bit half (lanes 0-3, 4-7): the 12 floats `r0 g0 b0 r1 | g1 b1 r2
+    // g2 | b2 r3 g3 b3` are blends of `r` as `r0 r3 r2 r1`, `g` as `g1 g0 g3 g2`
+    // and `b` as `b2 b1 b0 b3`.
+    let r = _mm256_permute_ps::<0b01_10_11_00>(r);
+    let g = _mm256_permute_ps::<0b10_11_00_01>(g);
+    let b = _mm256_permute_ps::<0b11_00_01_10>(b);
+    let x0 = _mm256_blend_ps::<0b0100_0100>(_mm256_blend_ps::<0b0010_0010>(r, g), b);
+    let x1 = _mm256_blend_ps::<0b0100_0100>(_mm256_blend_ps::<0b0010_0010>(g, b), r);
+    let x2 = _mm256_blend_ps::<0b0100_0100>(_mm256_blend_ps::<0b0010_0010>(b, r), g);
+    // Lanes 0-3 then 4-7: `x0.lo x1.lo | x2.lo x0.hi | x1.hi x2.hi`.
+    let y0 = _mm256_permute2f128_ps::<0x20>(x0, x1);
+    let y1 = _mm256_permute2f128_ps::<0x30>(x2, x0);
+    let y2 = _mm256_permute2f128_ps::<0x31>(x1, x2);
+    let half = half & 1;
+    // SAFETY: `out` is 192 bytes of `f32` (the assertion above); half `half` (0
+    // or 1) is its 96 bytes from `96 half`, which the three stores write.
+    #[allow(unsafe_code, reason = "stores of three registers into the half cell they fill")]
+    unsafe {
+        let at = out.as_mut_ptr().cast::<f32>().add(24 * half);
+        _mm256_storeu_ps(at, y0);
+        _mm256_storeu_ps(at.add(8), y1);
+        _mm256_storeu_ps(at.add(16), y2);
+    }
+}
+
+/// Lane `l` of `v` at `out[c][l]`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn store_colors(v: [__m256; 3], out: &mut [[f32; AVX2_LANES]; 3]) {
+    for (v, out) in v.into_iter().zip(out) {
+        // SAFETY: `out` is 8 `f32`, the 32 bytes the store writes.
+        #[allow(unsafe_code, reason = "an unaligned store of a register into an array of its size")]
+        unsafe {
+            _mm256_storeu_ps(out.as_mut_ptr(), v)
+        };
+    }
+}
+
+/// The colours of a cell's 16 pixels, `[r, g, b]` over the lanes, into `out` as
+/// its `Vec3`s: two-source permutes into the 48 floats `r0 g0 b0 r1 ...`, and
+/// three 64-byte stores.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+#[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
+fn store_cell([r, g, b]: [__m512; 3], out: &mut [Vec3; 16]) {
+    const { assert!(size_of::<[Vec3; 16]>() == 192) };
+    // Float `e` of store `j` is component `c` of pixel `p`, `16 j + e = 3 p + c`:
+    // first `r` and `g` in their places (index `p`, or `p + 16` for the second
+    // source), then `b` (the first source kept where `c < 2`).
+    const fn rg(j: usize) -> [i32; 16] {
+        let mut idx = [0i32; 16];
+        let mut e = 0;
+        while e < 16 {
+            let (p, c) = ((16 * j + e) / 3, (16 * j + e) % 3);
+            idx[e] = if c == 0 { p as i32 } else { (p + 16) as i32 };
+            e += 1;
+        }
+        idx
+    }
+    const fn then_b(j: usize) -> [i32; 16] {
+        let mut idx = [0i32; 16];
+        let mut e = 0;
+        while e < 16 {
+            let (p, c) = ((16 * j + e) / 3, (16 * j + e) % 3);
+            idx[e] = if c == 2 { (p + 16) as i32 } else { e as i32 };
+            e += 1;
+        }
+        idx
+    }
+    const RG: [[i32; 16]; 3] = [rg(0), rg(1), rg(2)];
+    const THEN_B: [[i32; 16]; 3] = [then_b(0), then_b(1), then_b(2)];
+    let mut o = [_mm512_setzero_ps(); 3];
+    for j in 0..3 {
+        let rg = _mm512_permutex2var_ps(r, index_avx512(&RG[j]), g);
+        o[j] = _mm512_permutex2var_ps(rg, index_avx512(&THEN_B[j]), b);
+    }
+    let [o0, o1, o2] = o;
+    // SAFETY: `out` is 192 bytes of `f32` (the assertion above), which the three
+    // 64-byte stores fill.
+    #[allow(unsafe_code, reason = "stores of three registers into the cell they fill")]
+    unsafe {
+        let at = out.as_mut_ptr().cast::<f32>();
+        _mm512_storeu_ps(at, o0);
+        _mm512_storeu_ps(at.add(16), o1);
+        _mm512_storeu_ps(at.add(32), o2);
+    }
+}
+
+/// Sixteen `i32` in an AVX-512 register.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+#[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
+fn index_avx512(a: &[i32; 16]) -> __m512i {
+    _mm512_setr_epi32(
+        a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14], a[15],
+    )
+}
+
+/// `q + a dx + b dy` of sixteen lanes, in that order.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+#[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
+fn step_avx512(q: f32, f: &FracLin, dx: __m512, dy: __m512) -> __m512 {
+    _mm512_add_ps(
+        _mm512_add_ps(_mm512_set1_ps(q), _mm512_mul_ps(_mm512_set1_ps(f.a), dx)),
+        _mm512_mul_ps(_mm512_set1_ps(f.b), dy),
+    )
+}
+
+/// `q + a dx + b dy` of eight lanes, in that order (P2 fig. 2's stepping).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn step_avx2(q: f32, f: &FracLin, dx: __m256, dy: __m256) -> __m256 {
+    _mm256_add_ps(
+        _mm256_add_ps(_mm256_set1_ps(q), _mm256_mul_ps(_mm256_set1_ps(f.a), dx)),
+        _mm256_mul_ps(_mm256_set1_ps(f.b), dy),
+    )
 }
 
 impl ColorComputers<'_> {
@@ -217,7 +635,7 @@ impl ColorComputers<'_> {
     /// `shade` itself, at one pixel, so it is the very value every pixel would get
     /// (zero's sign aside, which no VB mode keeps apart).
     pub fn flat_color(&self, poly: &FramePolygon) -> Option<Vec3> {
-        let drawn_texture = poly.texture.as_ref().is_some_and(|t| self.textures.get(t.map).is_some());
+        let drawn_texture = self.drawn_texture(poly);
         let still = |f: &crate::frame::FracLin| f.a == 0.0 && f.b == 0.0;
         if drawn_texture || !still(&poly.inv_z) || !still(&poly.intensity) {
             return None;
@@ -232,18 +650,6 @@ impl ColorComputers<'_> {
         Some(out[Q_PIXEL])
     }
 }
-
-/// Above this many visible pixels a cell is coloured as its four whole rows, one
-/// group each; up to it, its visible pixels are packed into groups. (From 13 on the
-/// packed pixels take four groups too, so the rows cost the same work less the
-/// packing.)
-const WHOLE_ROWS_FROM: usize = 12;
-
-/// Rows of a cell.
-const CELL_ROWS: usize = 4;
-
-/// `dx` of the four pixels of a cell's row from Q.
-const ROW_DX: [f32; LANES] = [-1.0, 0.0, 1.0, 2.0];
 
 /// `dx` of pixel `i` (`4 y + x`) of a cell from Q, its pixel (1, 1).
 const STEP_X: [f32; 16] = [-1.0, 0.0, 1.0, 2.0, -1.0, 0.0, 1.0, 2.0, -1.0, 0.0, 1.0, 2.0, -1.0, 0.0, 1.0, 2.0];
@@ -354,8 +760,18 @@ mod tests {
         };
         for round in 0..3000 {
             let mut lin = |scale: f32| FracLin { a: (next() - 0.5) * scale, b: (next() - 0.5) * scale, c: next() };
-            let (intensity, u, v) = (lin(1e-3), lin(1e-2), lin(1e-2));
-            let inv_z = FracLin { a: (next() - 0.5) * 1e-4, b: (next() - 0.5) * 1e-4, c: next() * 0.1 + 1e-4 };
+            // Odd faces now and then: texture coordinates out of any range
+            // (infinite or NaN at some pixels), `1/Z` through zero or below it
+            // (`Z` clamped to `1 / MIN_POSITIVE`: infinite footprints, total fog).
+            let (intensity, u, v) = match round % 13 {
+                5 => (lin(1e-3), lin(1e36), lin(3e38)),
+                _ => (lin(1e-3), lin(1e-2), lin(1e-2)),
+            };
+            let inv_z = match round % 11 {
+                7 => FracLin { a: (next() - 0.5) * 1e-1, b: (next() - 0.5) * 1e-1, c: next() * 1e-3 },
+                9 => FracLin { a: 0.0, b: 0.0, c: -next() },
+                _ => FracLin { a: (next() - 0.5) * 1e-4, b: (next() - 0.5) * 1e-4, c: next() * 0.1 + 1e-4 },
+            };
             let texture = (round % 4 != 0).then(|| PolyTexture {
                 // Map 2 is missing: the face keeps its colour.
                 map: round % 3,
@@ -401,13 +817,37 @@ mod tests {
             cc.shade::<false>(&poly, &vis, &mut out, &mut Counters::new(9));
             // The build target's code, whatever the processor has.
             let mut scalar = [unset; 16];
-            cc.shade_scalar::<false>(&poly, &vis, &mut scalar, &mut Counters::new(9));
+            cc.shade_scalar(&poly, &vis, &mut scalar);
+            // Each x86-64 copy the processor can run (else the target's colours
+            // again): the compiler's AVX2 code of the portable lanes, the explicit
+            // AVX2 copy, the AVX-512 copy.
+            let (mut lanes_avx2, mut avx2, mut avx512) = (scalar, scalar, scalar);
+            #[cfg(target_arch = "x86_64")]
+            if std::is_x86_feature_detected!("avx2") {
+                // SAFETY: the processor has AVX2.
+                #[allow(unsafe_code, reason = "a test of the AVX2 copies, after detection")]
+                unsafe {
+                    cc.shade_lanes_avx2(&poly, &vis, &mut lanes_avx2);
+                    cc.shade_avx2(&poly, &vis, &mut avx2);
+                }
+            }
+            #[cfg(target_arch = "x86_64")]
+            if std::is_x86_feature_detected!("avx512f") {
+                // SAFETY: the processor has AVX-512F.
+                #[allow(unsafe_code, reason = "a test of the AVX-512 copy, after detection")]
+                unsafe {
+                    cc.shade_avx512(&poly, &vis, &mut avx512)
+                };
+            }
             // The visible pixels; what the others get is unspecified.
             for (i, c) in out.iter().enumerate().filter(|(i, _)| visible >> i & 1 == 1) {
                 let expect = plain_pixel(&cc, &poly, px, py, i);
                 let bits = |v: &Vec3| v.to_array().map(f32::to_bits);
                 assert_eq!(bits(c), bits(&expect), "round {round}, pixel {i}: {c} against {expect}");
                 assert_eq!(bits(&scalar[i]), bits(&expect), "round {round}, pixel {i}: the target's code");
+                assert_eq!(bits(&lanes_avx2[i]), bits(&expect), "round {round}, pixel {i}: the AVX2 lanes");
+                assert_eq!(bits(&avx2[i]), bits(&expect), "round {round}, pixel {i}: the AVX2 copy");
+                assert_eq!(bits(&avx512[i]), bits(&expect), "round {round}, pixel {i}: the AVX-512 copy");
             }
         }
     }

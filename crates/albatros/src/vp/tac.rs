@@ -18,6 +18,8 @@
 //! pixel here and are not what the hardware did); each is a few operations and two
 //! reads. The entries are `f32` rounded from `f64`; `albatros tables` writes them.
 
+#[cfg(target_arch = "x86_64")]
+use std::arch::x86_64::*;
 use std::sync::OnceLock;
 
 /// Fog ROM entries per unit of `x = Z / Z0`.
@@ -100,7 +102,7 @@ impl TacRom {
     /// [`Self::fog`] of `N` values side by side, bit for bit lane by lane, laid out
     /// as arrays over the lanes so that the arithmetic vectorises; only the two ROM
     /// reads per lane go one by one. The floor is taken as `floor` and
-    /// [`small_int`] (where `s as i32` costs a branch per lane for Rust's saturating
+    /// `small_int` (where `s as i32` costs a branch per lane for Rust's saturating
     /// cast); `s` is in `0..=4096`, so both give the same integer, and `t` is
     /// formed from that integer as in [`Self::fog`].
     #[inline(always)]
@@ -149,6 +151,102 @@ impl TacRom {
         out
     }
 
+    /// [`Self::fog_lanes`] of eight values in an AVX2 register, bit for bit: the
+    /// same operations in the same order, the two ROM reads per lane as two
+    /// gathers (`k` is at most 4096 and the table holds 4098 entries, so both
+    /// reads are inside it).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(crate) fn fog_avx2(&self, x: __m256) -> __m256 {
+        let full = FOG_RANGE * FOG_STEPS_PER_UNIT;
+        // `max(x * 256, 0)` then `min(.., 4096)`, NaN going to 0 as `f32::max`
+        // does (`maxps` returns its second operand when either is NaN).
+        let s = _mm256_mul_ps(x, _mm256_set1_ps(FOG_STEPS_PER_UNIT as f32));
+        let s = _mm256_min_ps(_mm256_max_ps(s, _mm256_setzero_ps()), _mm256_set1_ps(full as f32));
+        let k = _mm256_min_epu32(small_int_avx2(_mm256_floor_ps(s)), _mm256_set1_epi32(full as i32));
+        let t = _mm256_sub_ps(s, _mm256_cvtepi32_ps(k));
+        debug_assert!(self.fog.len() == full as usize + 2);
+        // SAFETY: every lane of `k` is at most `full` (the `min` above), and the
+        // table holds `full + 2` entries: `k` and `k + 1` are inside it.
+        #[allow(unsafe_code, reason = "gathers from the ROM, the addresses clamped inside it")]
+        let (a, b) = unsafe {
+            let table = self.fog.as_ptr();
+            (_mm256_i32gather_ps::<4>(table, k), _mm256_i32gather_ps::<4>(table.add(1), k))
+        };
+        _mm256_add_ps(a, _mm256_mul_ps(t, _mm256_sub_ps(b, a)))
+    }
+
+    /// [`Self::log2_lanes`] of eight values in an AVX2 register, bit for bit, the
+    /// two ROM reads per lane as two gathers (the address is 8 bits, at most 255,
+    /// and the table holds 257 entries).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(crate) fn log2_avx2(&self, x: __m256) -> __m256 {
+        let low_bits = MANTISSA_BITS - LOG2_ADDRESS_BITS;
+        let bits = _mm256_castps_si256(x);
+        let exponent = _mm256_sub_epi32(
+            _mm256_and_si256(_mm256_srli_epi32::<{ MANTISSA_BITS as i32 }>(bits), _mm256_set1_epi32(0xFF)),
+            _mm256_set1_epi32(127),
+        );
+        let exponent = _mm256_cvtepi32_ps(exponent);
+        let k = _mm256_and_si256(
+            _mm256_srli_epi32::<{ (MANTISSA_BITS - LOG2_ADDRESS_BITS) as i32 }>(bits),
+            _mm256_set1_epi32((1 << LOG2_ADDRESS_BITS) - 1),
+        );
+        let t = _mm256_cvtepi32_ps(_mm256_and_si256(bits, _mm256_set1_epi32((1 << low_bits) - 1)));
+        let t = _mm256_mul_ps(t, _mm256_set1_ps(1.0 / (1u32 << low_bits) as f32));
+        // SAFETY: every lane of `k` is 8 bits (the mask above), at most 255, and
+        // the table holds 257 entries: `k` and `k + 1` are inside it.
+        #[allow(unsafe_code, reason = "gathers from the ROM, the addresses masked inside it")]
+        let (a, b) = unsafe {
+            let table = self.log2.as_ptr();
+            (_mm256_i32gather_ps::<4>(table, k), _mm256_i32gather_ps::<4>(table.add(1), k))
+        };
+        _mm256_add_ps(exponent, _mm256_add_ps(a, _mm256_mul_ps(t, _mm256_sub_ps(b, a))))
+    }
+
+    /// [`Self::fog_lanes`] of sixteen values in an AVX-512 register, bit for bit,
+    /// as [`Self::fog_avx2`] does it.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    #[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
+    pub(crate) fn fog_avx512(&self, x: __m512) -> __m512 {
+        let full = FOG_RANGE * FOG_STEPS_PER_UNIT;
+        let s = _mm512_mul_ps(x, _mm512_set1_ps(FOG_STEPS_PER_UNIT as f32));
+        let s = _mm512_min_ps(_mm512_max_ps(s, _mm512_setzero_ps()), _mm512_set1_ps(full as f32));
+        let k = _mm512_min_epu32(small_int_avx512(floor_avx512(s)), _mm512_set1_epi32(full as i32));
+        let t = _mm512_sub_ps(s, _mm512_cvtepi32_ps(k));
+        let (a, b) = entries_avx512(&self.fog[..], k);
+        _mm512_add_ps(a, _mm512_mul_ps(t, _mm512_sub_ps(b, a)))
+    }
+
+    /// [`Self::log2_lanes`] of sixteen values in an AVX-512 register, bit for bit,
+    /// as [`Self::log2_avx2`] does it.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    #[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
+    pub(crate) fn log2_avx512(&self, x: __m512) -> __m512 {
+        let low_bits = MANTISSA_BITS - LOG2_ADDRESS_BITS;
+        let bits = _mm512_castps_si512(x);
+        let exponent = _mm512_sub_epi32(
+            _mm512_and_si512(_mm512_srli_epi32::<{ MANTISSA_BITS }>(bits), _mm512_set1_epi32(0xFF)),
+            _mm512_set1_epi32(127),
+        );
+        let exponent = _mm512_cvtepi32_ps(exponent);
+        let k = _mm512_and_si512(
+            _mm512_srli_epi32::<{ MANTISSA_BITS - LOG2_ADDRESS_BITS }>(bits),
+            _mm512_set1_epi32((1 << LOG2_ADDRESS_BITS) - 1),
+        );
+        let t = _mm512_cvtepi32_ps(_mm512_and_si512(bits, _mm512_set1_epi32((1 << low_bits) - 1)));
+        let t = _mm512_mul_ps(t, _mm512_set1_ps(1.0 / (1u32 << low_bits) as f32));
+        let (a, b) = entries_avx512(&self.log2, k);
+        _mm512_add_ps(exponent, _mm512_add_ps(a, _mm512_mul_ps(t, _mm512_sub_ps(b, a))))
+    }
+
     /// The fog ROM's entries.
     pub fn fog_table(&self) -> &[f32] {
         &self.fog[..]
@@ -178,6 +276,68 @@ impl TacRom {
 pub(crate) fn small_int(x: f32) -> i32 {
     const MAGIC: f32 = 12_582_912.0;
     (x + MAGIC).to_bits() as i32 - MAGIC.to_bits() as i32
+}
+
+/// [`small_int`] of eight values in an AVX2 register.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(crate) fn small_int_avx2(x: __m256) -> __m256i {
+    const MAGIC: f32 = 12_582_912.0;
+    _mm256_sub_epi32(
+        _mm256_castps_si256(_mm256_add_ps(x, _mm256_set1_ps(MAGIC))),
+        _mm256_set1_epi32(MAGIC.to_bits() as i32),
+    )
+}
+
+/// Entries `k` and `k + 1` of a ROM for sixteen lanes of `k` (each lane at most
+/// `table.len() - 2`, which the callers' clamps and masks ensure; clamped here too,
+/// so that no lane reads outside the table). Both are read at once, as one 8-byte
+/// gather per lane, in two gathers of 8 lanes, then split into the even and the
+/// odd `f32`: half the gathered elements of two 4-byte gathers of 16.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+#[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
+fn entries_avx512(table: &[f32], k: __m512i) -> (__m512, __m512) {
+    let k = _mm512_min_epu32(k, _mm512_set1_epi32(table.len() as i32 - 2));
+    // SAFETY: every lane of `k` is at most `table.len() - 2` (the `min` above):
+    // the 8 bytes read at entry `k` are entries `k` and `k + 1`, inside the table.
+    #[allow(unsafe_code, reason = "gathers from a ROM, the addresses clamped inside it")]
+    let (low, high) = unsafe {
+        let at = table.as_ptr().cast::<f64>();
+        (
+            _mm512_i32gather_pd::<4>(_mm512_castsi512_si256(k), at),
+            _mm512_i32gather_pd::<4>(_mm512_extracti64x4_epi64::<1>(k), at),
+        )
+    };
+    let (low, high) = (_mm512_castpd_ps(low), _mm512_castpd_ps(high));
+    let even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
+    let odd = _mm512_add_epi32(even, _mm512_set1_epi32(1));
+    (_mm512_permutex2var_ps(low, even, high), _mm512_permutex2var_ps(low, odd, high))
+}
+
+/// [`small_int`] of sixteen values in an AVX-512 register.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+#[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
+pub(crate) fn small_int_avx512(x: __m512) -> __m512i {
+    const MAGIC: f32 = 12_582_912.0;
+    _mm512_sub_epi32(
+        _mm512_castps_si512(_mm512_add_ps(x, _mm512_set1_ps(MAGIC))),
+        _mm512_set1_epi32(MAGIC.to_bits() as i32),
+    )
+}
+
+/// `floor` of sixteen values in an AVX-512 register (`roundscale` to integers,
+/// rounding down, exceptions suppressed: `roundps` with the same mode in AVX2).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+#[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
+pub(crate) fn floor_avx512(x: __m512) -> __m512 {
+    _mm512_roundscale_ps::<{ _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC }>(x)
 }
 
 #[cfg(test)]
@@ -233,6 +393,71 @@ mod tests {
         f32::MAX,
     ];
 
+    /// [`TacRom::fog_avx2`] and [`TacRom::log2_avx2`] of eight values, where the
+    /// processor has AVX2.
+    #[cfg(target_arch = "x86_64")]
+    fn roms_avx2(rom: &TacRom, x: &[f32; 8]) -> Option<([f32; 8], [f32; 8])> {
+        #[target_feature(enable = "avx2")]
+        #[allow(unsafe_code, reason = "a load and stores of arrays of a register's size")]
+        fn run(rom: &TacRom, x: &[f32; 8]) -> ([f32; 8], [f32; 8]) {
+            let (mut fog, mut log2) = ([0.0f32; 8], [0.0f32; 8]);
+            // SAFETY: each array is 8 `f32`, the 32 bytes each load or store touches.
+            unsafe {
+                let x = _mm256_loadu_ps(x.as_ptr());
+                _mm256_storeu_ps(fog.as_mut_ptr(), rom.fog_avx2(x));
+                _mm256_storeu_ps(log2.as_mut_ptr(), rom.log2_avx2(x));
+            }
+            (fog, log2)
+        }
+        // SAFETY: the processor has AVX2.
+        #[allow(unsafe_code, reason = "a test of the AVX2 copy, after detection")]
+        std::is_x86_feature_detected!("avx2").then(|| unsafe { run(rom, x) })
+    }
+
+    /// [`TacRom::fog_avx512`] and [`TacRom::log2_avx512`] of sixteen values, where
+    /// the processor has AVX-512F.
+    #[cfg(target_arch = "x86_64")]
+    fn roms_avx512(rom: &TacRom, x: &[f32; 16]) -> Option<([f32; 16], [f32; 16])> {
+        #[target_feature(enable = "avx512f")]
+        #[allow(unsafe_code, reason = "a load and stores of arrays of a register's size")]
+        fn run(rom: &TacRom, x: &[f32; 16]) -> ([f32; 16], [f32; 16]) {
+            let (mut fog, mut log2) = ([0.0f32; 16], [0.0f32; 16]);
+            // SAFETY: each array is 16 `f32`, the 64 bytes each load or store touches.
+            unsafe {
+                let x = _mm512_loadu_ps(x.as_ptr());
+                _mm512_storeu_ps(fog.as_mut_ptr(), rom.fog_avx512(x));
+                _mm512_storeu_ps(log2.as_mut_ptr(), rom.log2_avx512(x));
+            }
+            (fog, log2)
+        }
+        // SAFETY: the processor has AVX-512F.
+        #[allow(unsafe_code, reason = "a test of the AVX-512 copy, after detection")]
+        std::is_x86_feature_detected!("avx512f").then(|| unsafe { run(rom, x) })
+    }
+
+    /// The AVX2 and AVX-512 copies against the ROMs, bit for bit, where the
+    /// processor has them (the eight values twice for AVX-512, the second time
+    /// in reverse order).
+    fn check_simd(rom: &TacRom, x: &[f32; 8]) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some((fog, log2)) = roms_avx2(rom, x) {
+            for l in 0..8 {
+                assert_eq!(fog[l].to_bits(), rom.fog(x[l]).to_bits(), "AVX2 fog of {}", x[l]);
+                assert_eq!(log2[l].to_bits(), rom.log2(x[l]).to_bits(), "AVX2 log2 of {}", x[l]);
+            }
+        }
+        #[cfg(target_arch = "x86_64")]
+        if let Some((fog, log2)) = roms_avx512(rom, &std::array::from_fn(|l| x[if l < 8 { l } else { 15 - l }])) {
+            for l in 0..16 {
+                let x = x[if l < 8 { l } else { 15 - l }];
+                assert_eq!(fog[l].to_bits(), rom.fog(x).to_bits(), "AVX-512 fog of {x}");
+                assert_eq!(log2[l].to_bits(), rom.log2(x).to_bits(), "AVX-512 log2 of {x}");
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = (rom, x);
+    }
+
     #[test]
     fn rom_lanes_are_the_roms_bit_for_bit() {
         let rom = TacRom::get();
@@ -257,6 +482,7 @@ mod tests {
                 assert_eq!(fog[l].to_bits(), rom.fog(x[l]).to_bits(), "fog of {}", x[l]);
                 assert_eq!(log2[l].to_bits(), rom.log2(bits[l]).to_bits(), "log2 of {}", bits[l]);
             }
+            check_simd(rom, &std::array::from_fn(|l| if l < 4 { x[l] } else { bits[l - 4] }));
         }
         // Every fog entry and the points between.
         for k in 0..=(FOG_RANGE * FOG_STEPS_PER_UNIT * 4 + 8) {
@@ -265,6 +491,12 @@ mod tests {
             for l in 0..2 {
                 assert_eq!(fog[l].to_bits(), rom.fog(x[l]).to_bits(), "fog of {}", x[l]);
             }
+        }
+        for k in (0..=(FOG_RANGE * FOG_STEPS_PER_UNIT * 4 + 8)).step_by(4) {
+            check_simd(rom, &std::array::from_fn(|l| (k as f32 + l as f32 * 0.5) / 1024.0));
+        }
+        for odd in ODD.chunks(8) {
+            check_simd(rom, &std::array::from_fn(|l| odd[l % odd.len()]));
         }
         let log2 = rom.log2_lanes(&ODD);
         for (l, x) in ODD.iter().enumerate() {

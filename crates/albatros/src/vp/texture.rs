@@ -32,6 +32,11 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
+#[cfg(target_arch = "x86_64")]
+use std::arch::x86_64::*;
+
+#[cfg(target_arch = "x86_64")]
+use super::tac::{floor_avx512, small_int_avx2, small_int_avx512};
 use super::tac::{small_int, TacRom};
 use crate::db::{Scene, TextureSource};
 
@@ -67,6 +72,14 @@ pub struct TextureMap {
     texels: Vec<u8>,
     /// Where each level starts in `texels`, `n + 1` entries.
     offsets: Vec<usize>,
+    /// The same levels laid out for one 4-byte read per bilinear look-up (the
+    /// AVX2 copy's gathers, [`TextureMap::sample_avx2`]): level `k` (side `s`)
+    /// is `s` rows of `s + 1` texel pairs, pair `(r, c)` at byte
+    /// `pair_start(n, s) + 2 (r (s + 1) + c)` holding texels `(c mod s, r)` and
+    /// `(c mod s, (r + 1) mod s)`. So the 4 bytes at pair `(r0, c0)` are `T1, T2,
+    /// T3, T4` of P2 eq. (3), wrapped, with no mask of the `+ 1`s. Twice the
+    /// texels' memory (plus a column per level).
+    pairs: Vec<u8>,
 }
 
 impl fmt::Debug for TextureMap {
@@ -119,7 +132,26 @@ impl TextureMap {
             texels.extend(next.iter().map(|&s| ((s + (1 << (count_log2 - 1))) >> count_log2) as u8));
             sums = next;
         }
-        Self { log2_side: n, texels, offsets }
+        let pairs = Self::pairs(n, &texels, &offsets);
+        Self { log2_side: n, texels, offsets, pairs }
+    }
+
+    /// The pair layout of the levels (see [`Self::pairs`]'s field).
+    fn pairs(n: u32, texels: &[u8], offsets: &[usize]) -> Vec<u8> {
+        // The last level (side 1) starts at `pair_start(n, 1)` and holds 4 bytes.
+        let mut pairs = Vec::with_capacity(pair_start(n, 1) as usize + 4);
+        for k in 0..=n {
+            let s = 1usize << (n - k);
+            let level = &texels[offsets[k as usize]..][..s * s];
+            debug_assert_eq!(pairs.len(), pair_start(n, s as u32) as usize);
+            for r in 0..s {
+                for c in 0..=s {
+                    pairs.push(level[r * s + c % s]);
+                    pairs.push(level[(r + 1) % s * s + c % s]);
+                }
+            }
+        }
+        pairs
     }
 
     /// `n`, where level 0 is `2^n x 2^n`.
@@ -216,7 +248,7 @@ impl TextureMap {
         self.trilinear(u, v, self.lod(footprint))
     }
 
-    /// [`Self::sample`] for [`LANES`] pixels side by side: lane `l` of the result is
+    /// [`Self::sample`] for `N` pixels side by side: lane `l` of the result is
     /// `self.sample(u[l], v[l], footprint[l])`, bit for bit. Every lane is sampled,
     /// whatever its inputs (the addresses are wrapped with masks), so that no
     /// lane-by-lane branch is needed; the colour computers fill a group's spare
@@ -230,27 +262,27 @@ impl TextureMap {
     /// in a coarser level (every `kr` is 0: a magnified map, or the last level),
     /// that level is not read.
     #[inline(always)]
-    pub fn sample_lanes(&self, u: &[f32; LANES], v: &[f32; LANES], footprint: &[f32; LANES]) -> [f32; LANES] {
+    pub fn sample_lanes<const N: usize>(&self, u: &[f32; N], v: &[f32; N], footprint: &[f32; N]) -> [f32; N] {
         let n = self.log2_side;
         // Level of detail ([`Self::lod`], [`lod_of_texels`]).
         let (side, top, beyond) = (self.side() as f32, n as f32, (2u32 << n) as f32);
-        let texels: [f32; LANES] = std::array::from_fn(|l| footprint[l] * side);
+        let texels: [f32; N] = std::array::from_fn(|l| footprint[l] * side);
         // `log2` of every lane (finite whatever the bits), kept where the clamp
         // does not settle the level.
         let log = TacRom::get().log2_lanes(&texels);
-        let mut lod = [0.0f32; LANES];
-        for l in 0..LANES {
+        let mut lod = [0.0f32; N];
+        for l in 0..N {
             let above = if texels[l] < beyond { log[l].min(top) } else { top };
             lod[l] = if texels[l] > 1.0 { above } else { 0.0 };
         }
         // [`Self::trilinear`]: `lod` is already in `0..=n`, so its clamp is the
         // identity (a zero's sign aside, which changes neither `k` nor `kr`), and
         // its integer part is its floor.
-        let mut kr = [0.0f32; LANES];
-        let mut k = [0i32; LANES];
-        let mut fu = [0.0f32; LANES];
-        let mut fv = [0.0f32; LANES];
-        for l in 0..LANES {
+        let mut kr = [0.0f32; N];
+        let mut k = [0i32; N];
+        let mut fu = [0.0f32; N];
+        let mut fv = [0.0f32; N];
+        for l in 0..N {
             let floor = lod[l].floor();
             kr[l] = lod[l] - floor;
             k[l] = small_int(floor);
@@ -259,7 +291,7 @@ impl TextureMap {
         }
         // [`Self::bilinear`] in level `k`.
         let fine = LevelLookup::new(n, &k, &fu, &fv).read(&self.texels);
-        if kr == [0.0; LANES] {
+        if kr == [0.0; N] {
             // Trilinear keeps the fine value alone in every lane.
             return fine;
         }
@@ -275,30 +307,224 @@ impl TextureMap {
     }
 }
 
-/// Pixels the colour computers and the texture unit work on side by side: one
-/// 128-bit register of `f32` (x86-64-v2's SSE), the visible pixels of a cell
-/// packed into groups of four.
+#[cfg(target_arch = "x86_64")]
+impl TextureMap {
+    /// [`Self::sample_lanes`] of eight pixels in AVX2 registers, bit for bit: the
+    /// same operations in the same order, with the reads as gathers: the TAC's
+    /// `log2` ROM ([`TacRom::log2_avx2`]) and one 4-byte read of the pair layout
+    /// per lane and level for the four texels `T1..T4`.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(crate) fn sample_avx2(&self, u: __m256, v: __m256, footprint: __m256) -> __m256 {
+        let n = self.log2_side;
+        // Level of detail ([`Self::lod`], [`lod_of_texels`]).
+        let (side, top, beyond) = (self.side() as f32, n as f32, (2u32 << n) as f32);
+        let texels = _mm256_mul_ps(footprint, _mm256_set1_ps(side));
+        let log = TacRom::get().log2_avx2(texels);
+        let top = _mm256_set1_ps(top);
+        // `log.min(top)` (never NaN: the ROM's `log2` is finite) where below
+        // `beyond`, else `top`; all that where above one texel, else 0 (NaN too:
+        // ordered compares are false for it).
+        let above =
+            _mm256_blendv_ps(top, _mm256_min_ps(log, top), _mm256_cmp_ps::<_CMP_LT_OQ>(texels, _mm256_set1_ps(beyond)));
+        let lod = _mm256_and_ps(above, _mm256_cmp_ps::<_CMP_GT_OQ>(texels, _mm256_set1_ps(1.0)));
+        let floor = _mm256_floor_ps(lod);
+        let kr = _mm256_sub_ps(lod, floor);
+        let k = small_int_avx2(floor);
+        let (fu, fv) = (fract01_avx2(u), fract01_avx2(v));
+        let fine = self.bilinear_avx2(k, fu, fv);
+        // `kr == 0` in every lane (either zero's sign: `kr` is never NaN).
+        if _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_NEQ_UQ>(kr, _mm256_setzero_ps())) == 0 {
+            return fine;
+        }
+        let k = _mm256_min_epi32(_mm256_add_epi32(k, _mm256_set1_epi32(1)), _mm256_set1_epi32(n as i32));
+        let coarse = self.bilinear_avx2(k, fu, fv);
+        _mm256_add_ps(fine, _mm256_mul_ps(kr, _mm256_sub_ps(coarse, fine)))
+    }
+
+    /// [`LevelLookup`] and its read in level `k` per lane (at most `n`) at the
+    /// fractional parts `fu`, `fv`: P2 eq. (3) from one gather of the pair layout.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn bilinear_avx2(&self, k: __m256i, fu: __m256, fv: __m256) -> __m256 {
+        let n = _mm256_set1_epi32(self.log2_side as i32);
+        let level_log2 = _mm256_sub_epi32(n, k);
+        // The side `2^(n-k)` as `f32` from its bits, and as an integer.
+        let side_f = _mm256_castsi256_ps(_mm256_slli_epi32::<23>(_mm256_add_epi32(level_log2, _mm256_set1_epi32(127))));
+        let side = _mm256_sllv_epi32(_mm256_set1_epi32(1), level_log2);
+        let half = _mm256_set1_ps(0.5);
+        // [`split`] of `fu side - 1/2` and `fv side - 1/2`.
+        let s = _mm256_sub_ps(_mm256_mul_ps(fu, side_f), half);
+        let fs = _mm256_floor_ps(s);
+        let (i0, ku) = (small_int_avx2(fs), _mm256_sub_ps(s, fs));
+        let t = _mm256_sub_ps(_mm256_mul_ps(fv, side_f), half);
+        let ft = _mm256_floor_ps(t);
+        let (j0, kv) = (small_int_avx2(ft), _mm256_sub_ps(t, ft));
+        let mask = _mm256_sub_epi32(side, _mm256_set1_epi32(1));
+        let (c0, r0) = (_mm256_and_si256(i0, mask), _mm256_and_si256(j0, mask));
+        // [`pair_start`]: `2 (4^(n+1) - 4 s^2) / 3`, the exact division as the
+        // product by the inverse of 3 modulo 2^32, plus `2 (2^(n+1) - 2 s)`.
+        let n4 = _mm256_set1_epi32((4u32 << (2 * self.log2_side)) as i32);
+        let n2 = _mm256_set1_epi32((2u32 << self.log2_side) as i32);
+        let squares = _mm256_sub_epi32(n4, _mm256_slli_epi32::<2>(_mm256_mullo_epi32(side, side)));
+        let start = _mm256_add_epi32(
+            _mm256_slli_epi32::<1>(_mm256_mullo_epi32(squares, _mm256_set1_epi32(0xAAAA_AAABu32 as i32))),
+            _mm256_slli_epi32::<1>(_mm256_sub_epi32(n2, _mm256_slli_epi32::<1>(side))),
+        );
+        // Pair `(r0, c0)`: `start + 2 (r0 (s + 1) + c0)`.
+        let pair = _mm256_add_epi32(_mm256_mullo_epi32(r0, _mm256_add_epi32(side, _mm256_set1_epi32(1))), c0);
+        let index = _mm256_add_epi32(start, _mm256_slli_epi32::<1>(pair));
+        // Inside the layout already (the masks, and the starts of levels at most
+        // `n`); the `min` makes every read safe whatever the lanes hold.
+        let last = (self.pairs.len() - 4) as i32;
+        let index = _mm256_min_epu32(index, _mm256_set1_epi32(last));
+        // SAFETY: every lane of `index` is at most `pairs.len() - 4` (the `min`
+        // above): the 4 bytes read at it are inside `pairs`.
+        #[allow(unsafe_code, reason = "one gather of the texel pairs, the addresses clamped inside them")]
+        let quad = unsafe { _mm256_i32gather_epi32::<1>(self.pairs.as_ptr().cast::<i32>(), index) };
+        let byte = _mm256_set1_epi32(0xFF);
+        let t1 = _mm256_cvtepi32_ps(_mm256_and_si256(quad, byte));
+        let t2 = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32::<8>(quad), byte));
+        let t3 = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32::<16>(quad), byte));
+        let t4 = _mm256_cvtepi32_ps(_mm256_srli_epi32::<24>(quad));
+        // [`eq3`].
+        let one = _mm256_set1_ps(1.0);
+        let (nku, nkv) = (_mm256_sub_ps(one, ku), _mm256_sub_ps(one, kv));
+        let left = _mm256_add_ps(_mm256_mul_ps(nkv, t1), _mm256_mul_ps(kv, t2));
+        let right = _mm256_add_ps(_mm256_mul_ps(nkv, t3), _mm256_mul_ps(kv, t4));
+        let value = _mm256_add_ps(_mm256_mul_ps(nku, left), _mm256_mul_ps(ku, right));
+        _mm256_div_ps(value, _mm256_set1_ps(TEXEL_ONE))
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl TextureMap {
+    /// [`Self::sample_lanes`] of sixteen pixels in AVX-512 registers, bit for bit:
+    /// [`Self::sample_avx2`] over twice the lanes, the selects as masks.
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    #[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
+    pub(crate) fn sample_avx512(&self, u: __m512, v: __m512, footprint: __m512) -> __m512 {
+        let n = self.log2_side;
+        let (side, top, beyond) = (self.side() as f32, n as f32, (2u32 << n) as f32);
+        let texels = _mm512_mul_ps(footprint, _mm512_set1_ps(side));
+        let log = TacRom::get().log2_avx512(texels);
+        let top = _mm512_set1_ps(top);
+        let below = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(texels, _mm512_set1_ps(beyond));
+        let above = _mm512_mask_blend_ps(below, top, _mm512_min_ps(log, top));
+        // Zero (`+0`) where not above one texel, NaN included.
+        let lod = _mm512_maskz_mov_ps(_mm512_cmp_ps_mask::<_CMP_GT_OQ>(texels, _mm512_set1_ps(1.0)), above);
+        let floor = floor_avx512(lod);
+        let kr = _mm512_sub_ps(lod, floor);
+        let k = small_int_avx512(floor);
+        let (fu, fv) = (fract01_avx512(u), fract01_avx512(v));
+        let fine = self.bilinear_avx512(k, fu, fv);
+        if _mm512_cmp_ps_mask::<_CMP_NEQ_UQ>(kr, _mm512_setzero_ps()) == 0 {
+            return fine;
+        }
+        let k = _mm512_min_epi32(_mm512_add_epi32(k, _mm512_set1_epi32(1)), _mm512_set1_epi32(n as i32));
+        let coarse = self.bilinear_avx512(k, fu, fv);
+        _mm512_add_ps(fine, _mm512_mul_ps(kr, _mm512_sub_ps(coarse, fine)))
+    }
+
+    /// [`Self::bilinear_avx2`] over sixteen lanes.
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    #[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
+    fn bilinear_avx512(&self, k: __m512i, fu: __m512, fv: __m512) -> __m512 {
+        let n = _mm512_set1_epi32(self.log2_side as i32);
+        let level_log2 = _mm512_sub_epi32(n, k);
+        let side_f = _mm512_castsi512_ps(_mm512_slli_epi32::<23>(_mm512_add_epi32(level_log2, _mm512_set1_epi32(127))));
+        let side = _mm512_sllv_epi32(_mm512_set1_epi32(1), level_log2);
+        let half = _mm512_set1_ps(0.5);
+        let s = _mm512_sub_ps(_mm512_mul_ps(fu, side_f), half);
+        let fs = floor_avx512(s);
+        let (i0, ku) = (small_int_avx512(fs), _mm512_sub_ps(s, fs));
+        let t = _mm512_sub_ps(_mm512_mul_ps(fv, side_f), half);
+        let ft = floor_avx512(t);
+        let (j0, kv) = (small_int_avx512(ft), _mm512_sub_ps(t, ft));
+        let mask = _mm512_sub_epi32(side, _mm512_set1_epi32(1));
+        let (c0, r0) = (_mm512_and_si512(i0, mask), _mm512_and_si512(j0, mask));
+        let n4 = _mm512_set1_epi32((4u32 << (2 * self.log2_side)) as i32);
+        let n2 = _mm512_set1_epi32((2u32 << self.log2_side) as i32);
+        let squares = _mm512_sub_epi32(n4, _mm512_slli_epi32::<2>(_mm512_mullo_epi32(side, side)));
+        let start = _mm512_add_epi32(
+            _mm512_slli_epi32::<1>(_mm512_mullo_epi32(squares, _mm512_set1_epi32(0xAAAA_AAABu32 as i32))),
+            _mm512_slli_epi32::<1>(_mm512_sub_epi32(n2, _mm512_slli_epi32::<1>(side))),
+        );
+        let pair = _mm512_add_epi32(_mm512_mullo_epi32(r0, _mm512_add_epi32(side, _mm512_set1_epi32(1))), c0);
+        let index = _mm512_add_epi32(start, _mm512_slli_epi32::<1>(pair));
+        let last = (self.pairs.len() - 4) as i32;
+        let index = _mm512_min_epu32(index, _mm512_set1_epi32(last));
+        // SAFETY: every lane of `index` is at most `pairs.len() - 4` (the `min`
+        // above): the 4 bytes read at it are inside `pairs`.
+        #[allow(unsafe_code, reason = "one gather of the texel pairs, the addresses clamped inside them")]
+        let quad = unsafe { _mm512_i32gather_epi32::<1>(index, self.pairs.as_ptr().cast::<i32>()) };
+        let byte = _mm512_set1_epi32(0xFF);
+        let t1 = _mm512_cvtepi32_ps(_mm512_and_si512(quad, byte));
+        let t2 = _mm512_cvtepi32_ps(_mm512_and_si512(_mm512_srli_epi32::<8>(quad), byte));
+        let t3 = _mm512_cvtepi32_ps(_mm512_and_si512(_mm512_srli_epi32::<16>(quad), byte));
+        let t4 = _mm512_cvtepi32_ps(_mm512_srli_epi32::<24>(quad));
+        let one = _mm512_set1_ps(1.0);
+        let (nku, nkv) = (_mm512_sub_ps(one, ku), _mm512_sub_ps(one, kv));
+        let left = _mm512_add_ps(_mm512_mul_ps(nkv, t1), _mm512_mul_ps(kv, t2));
+        let right = _mm512_add_ps(_mm512_mul_ps(nkv, t3), _mm512_mul_ps(kv, t4));
+        let value = _mm512_add_ps(_mm512_mul_ps(nku, left), _mm512_mul_ps(ku, right));
+        _mm512_div_ps(value, _mm512_set1_ps(TEXEL_ONE))
+    }
+}
+
+/// [`fract01`] of sixteen values in an AVX-512 register.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+#[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
+fn fract01_avx512(x: __m512) -> __m512 {
+    let d = _mm512_sub_ps(x, floor_avx512(x));
+    _mm512_min_ps(_mm512_max_ps(d, _mm512_setzero_ps()), _mm512_set1_ps(1.0))
+}
+
+/// [`fract01`] of eight values in an AVX2 register (`maxps` returns its second
+/// operand, 0, for a NaN, as `f32::max` does).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn fract01_avx2(x: __m256) -> __m256 {
+    let d = _mm256_sub_ps(x, _mm256_floor_ps(x));
+    _mm256_min_ps(_mm256_max_ps(d, _mm256_setzero_ps()), _mm256_set1_ps(1.0))
+}
+
+/// Pixels the colour computers and the texture unit work on side by side in the
+/// build target's code: one 128-bit register of `f32` (x86-64-v2's SSE).
 pub const LANES: usize = 4;
+
+/// Where level `k` of side `s = 2^(n-k)` starts in [`TextureMap`]'s pair layout:
+/// after levels `0..k`, `2 s_i (s_i + 1)` bytes each, `2 (4^(n+1) - 4 s^2) / 3 +
+/// 2 (2^(n+1) - 2 s)` in all. Exact in `u32` for `n` up to [`MAX_LOG2_SIDE`].
+#[inline(always)]
+fn pair_start(n: u32, s: u32) -> u32 {
+    2 * ((4u32 << (2 * n)) - 4 * s * s) / 3 + 2 * ((2u32 << n) - 2 * s)
+}
 
 /// The bilinear look-ups of [`TextureMap::sample_lanes`] in one level per lane: the
 /// weights `Ku`, `Kv` and the addresses in the map's texels of `T1..T4` (P2 eq. 3).
-struct LevelLookup {
+struct LevelLookup<const N: usize> {
     /// `Ku` per lane.
-    ku: [f32; LANES],
+    ku: [f32; N],
     /// `Kv` per lane.
-    kv: [f32; LANES],
+    kv: [f32; N],
     /// Where `T1, T2, T3, T4` are, per lane ([`TextureMap::quad`]).
-    index: [[u32; LANES]; 4],
+    index: [[u32; N]; 4],
 }
 
-impl LevelLookup {
+impl<const N: usize> LevelLookup<N> {
     /// The look-ups in level `k[l]` (at most `n`) at the fractional parts
     /// `fu[l]`, `fv[l]`, as [`TextureMap::bilinear`] makes them.
     #[inline(always)]
-    fn new(n: u32, k: &[i32; LANES], fu: &[f32; LANES], fv: &[f32; LANES]) -> Self {
-        let mut lookup = Self { ku: [0.0; LANES], kv: [0.0; LANES], index: [[0; LANES]; 4] };
+    fn new(n: u32, k: &[i32; N], fu: &[f32; N], fv: &[f32; N]) -> Self {
+        let mut lookup = Self { ku: [0.0; N], kv: [0.0; N], index: [[0; N]; 4] };
         let [t1, t2, t3, t4] = &mut lookup.index;
-        for l in 0..LANES {
+        for l in 0..N {
             // The side `2^(n-k)`, exactly `(1 << (n - k)) as f32`, from its bits.
             let side = f32::from_bits((127 + (n as i32 - k[l]) as u32) << 23);
             let (i0, ku) = split(fu[l] * side - 0.5);
@@ -326,12 +552,12 @@ impl LevelLookup {
     /// compiler so (one vector operation per quad, where a bounds check costs a
     /// compare and a branch per read).
     #[inline(always)]
-    fn read(&self, texels: &[u8]) -> [f32; LANES] {
+    fn read(&self, texels: &[u8]) -> [f32; N] {
         let last = (texels.len() - 1) as u32;
         let texels = &texels[..=last as usize];
-        let mut t = [[0.0f32; LANES]; 4];
+        let mut t = [[0.0f32; N]; 4];
         for (t, index) in t.iter_mut().zip(&self.index) {
-            let index: [u32; LANES] = index.map(|i| i.min(last));
+            let index: [u32; N] = index.map(|i| i.min(last));
             for (t, i) in t.iter_mut().zip(index) {
                 *t = f32::from(texels[i as usize]);
             }
@@ -765,6 +991,85 @@ mod tests {
         fine + kr * (bilinear(k + 1) - fine)
     }
 
+    /// Eight lanes of [`TextureMap::sample_avx2`], where the processor has AVX2.
+    #[cfg(target_arch = "x86_64")]
+    fn sample_avx2_lanes(map: &TextureMap, u: &[f32; 8], v: &[f32; 8], footprint: &[f32; 8]) -> Option<[f32; 8]> {
+        #[target_feature(enable = "avx2")]
+        #[allow(unsafe_code, reason = "loads and a store of arrays of a register's size")]
+        fn run(map: &TextureMap, u: &[f32; 8], v: &[f32; 8], footprint: &[f32; 8]) -> [f32; 8] {
+            let mut out = [0.0f32; 8];
+            // SAFETY: each array is 8 `f32`, the 32 bytes each load or store touches.
+            unsafe {
+                let t = map.sample_avx2(
+                    _mm256_loadu_ps(u.as_ptr()),
+                    _mm256_loadu_ps(v.as_ptr()),
+                    _mm256_loadu_ps(footprint.as_ptr()),
+                );
+                _mm256_storeu_ps(out.as_mut_ptr(), t);
+            }
+            out
+        }
+        // SAFETY: the processor has AVX2.
+        #[allow(unsafe_code, reason = "a test of the AVX2 copy, after detection")]
+        std::is_x86_feature_detected!("avx2").then(|| unsafe { run(map, u, v, footprint) })
+    }
+
+    /// Sixteen lanes of [`TextureMap::sample_avx512`], where the processor has
+    /// AVX-512F: the eight points twice, the second time in reverse order.
+    #[cfg(target_arch = "x86_64")]
+    fn sample_avx512_lanes(map: &TextureMap, u: &[f32; 8], v: &[f32; 8], footprint: &[f32; 8]) -> Option<[f32; 16]> {
+        #[target_feature(enable = "avx512f")]
+        #[allow(unsafe_code, reason = "loads and a store of arrays of a register's size")]
+        fn run(map: &TextureMap, u: &[f32; 16], v: &[f32; 16], footprint: &[f32; 16]) -> [f32; 16] {
+            let mut out = [0.0f32; 16];
+            // SAFETY: each array is 16 `f32`, the 64 bytes each load or store touches.
+            unsafe {
+                let t = map.sample_avx512(
+                    _mm512_loadu_ps(u.as_ptr()),
+                    _mm512_loadu_ps(v.as_ptr()),
+                    _mm512_loadu_ps(footprint.as_ptr()),
+                );
+                _mm512_storeu_ps(out.as_mut_ptr(), t);
+            }
+            out
+        }
+        let twice = |x: &[f32; 8]| -> [f32; 16] { std::array::from_fn(|l| if l < 8 { x[l] } else { x[15 - l] }) };
+        // SAFETY: the processor has AVX-512F.
+        #[allow(unsafe_code, reason = "a test of the AVX-512 copy, after detection")]
+        std::is_x86_feature_detected!("avx512f").then(|| unsafe { run(map, &twice(u), &twice(v), &twice(footprint)) })
+    }
+
+    /// Every path of the texture unit against [`plain_sample`], bit for bit, at
+    /// eight points: [`TextureMap::sample`], [`TextureMap::sample_lanes`] by 8 and
+    /// by 4, and the AVX2 and AVX-512 copies where the processor has them.
+    fn check_sampling(map: &TextureMap, u: &[f32; 8], v: &[f32; 8], footprint: &[f32; 8]) {
+        let eight = map.sample_lanes(u, v, footprint);
+        let half = |x: &[f32; 8], h: usize| -> [f32; LANES] { std::array::from_fn(|l| x[LANES * h + l]) };
+        let four = [0, 1].map(|h| map.sample_lanes(&half(u, h), &half(v, h), &half(footprint, h)));
+        #[cfg(target_arch = "x86_64")]
+        let avx2 = sample_avx2_lanes(map, u, v, footprint);
+        #[cfg(not(target_arch = "x86_64"))]
+        let avx2: Option<[f32; 8]> = None;
+        #[cfg(target_arch = "x86_64")]
+        let avx512 = sample_avx512_lanes(map, u, v, footprint);
+        #[cfg(not(target_arch = "x86_64"))]
+        let avx512: Option<[f32; 16]> = None;
+        for l in 0..8 {
+            let expect = plain_sample(map, u[l], v[l], footprint[l]).to_bits();
+            let at = format!("{map:?} u {} v {} fp {}", u[l], v[l], footprint[l]);
+            assert_eq!(map.sample(u[l], v[l], footprint[l]).to_bits(), expect, "{at}: sample");
+            assert_eq!(eight[l].to_bits(), expect, "{at}: 8 lanes");
+            assert_eq!(four[l / LANES][l % LANES].to_bits(), expect, "{at}: 4 lanes");
+            if let Some(avx2) = avx2 {
+                assert_eq!(avx2[l].to_bits(), expect, "{at}: AVX2");
+            }
+            if let Some(avx512) = avx512 {
+                assert_eq!(avx512[l].to_bits(), expect, "{at}: AVX-512");
+                assert_eq!(avx512[15 - l].to_bits(), expect, "{at}: AVX-512, upper lanes");
+            }
+        }
+    }
+
     #[test]
     fn cell_sampling_is_sampling_bit_for_bit() {
         // Ordinary points, footprints across the pyramid (the clamped ends and the
@@ -778,34 +1083,52 @@ mod tests {
         for map in [ramp(1), ramp(2), ramp(16), builtin("grass").unwrap(), TextureMap::build(12, vec![9; 1 << 24])] {
             let scale = map.side() as f32;
             for round in 0..1600 {
-                let u: [f32; LANES] = std::array::from_fn(|i| match round % 4 {
+                let u: [f32; 8] = std::array::from_fn(|i| match round % 4 {
                     0 => odd[(i + round) % odd.len()],
                     _ => (next() - 0.5) * 40.0,
                 });
-                let v: [f32; LANES] = std::array::from_fn(|_| (next() - 0.5) * 40.0);
-                let footprint: [f32; LANES] = std::array::from_fn(|i| match round % 3 {
+                let v: [f32; 8] = std::array::from_fn(|i| match round % 5 {
+                    0 => odd[(i + round / 5) % odd.len()],
+                    _ => (next() - 0.5) * 40.0,
+                });
+                let footprint: [f32; 8] = std::array::from_fn(|i| match round % 3 {
                     0 if (i + round) % 5 == 0 => odd[(i + round) % odd.len()],
                     _ => (next() * 30.0 - 15.0).exp2() / scale,
                 });
-                let t = map.sample_lanes(&u, &v, &footprint);
-                for i in 0..LANES {
-                    let expect = plain_sample(&map, u[i], v[i], footprint[i]);
-                    assert_eq!(t[i].to_bits(), expect.to_bits(), "{map:?} u {} v {} fp {}", u[i], v[i], footprint[i]);
-                    assert_eq!(map.sample(u[i], v[i], footprint[i]).to_bits(), expect.to_bits());
-                }
+                check_sampling(&map, &u, &v, &footprint);
             }
-            // Exact powers of two and their neighbours: the clamp's edges.
+            // Exact powers of two and their neighbours: the clamp's edges; and the
+            // map's edges, where the look-ups wrap.
             for e in -3..=14 {
                 let x = (e as f32).exp2() / scale;
-                let fp: [f32; LANES] = std::array::from_fn(|i| match i % 3 {
+                let fp: [f32; 8] = std::array::from_fn(|i| match i % 3 {
                     0 => x,
                     1 => f32::from_bits(x.to_bits() + 1),
                     _ => f32::from_bits(x.to_bits() - 1),
                 });
-                let (u, v) = ([0.3; LANES], [0.7; LANES]);
-                let t = map.sample_lanes(&u, &v, &fp);
-                for i in 0..LANES {
-                    assert_eq!(t[i].to_bits(), plain_sample(&map, 0.3, 0.7, fp[i]).to_bits());
+                let edge = [0.0, 1e-7, 0.5 / scale, 1.0 - 0.5 / scale, 1.0 - 1e-7, 1.0, -1e-7, 0.3];
+                check_sampling(&map, &[0.3; 8], &[0.7; 8], &fp);
+                check_sampling(&map, &edge, &[0.7; 8], &fp);
+                check_sampling(&map, &[0.3; 8], &edge, &fp);
+            }
+        }
+    }
+
+    /// The pair layout holds, at pair `(r, c)` of each level, texels `(c, r)` and
+    /// `(c, r + 1)`, wrapped.
+    #[test]
+    fn pair_layout_holds_the_texels() {
+        for map in [ramp(1), ramp(2), ramp(16), builtin("grass").unwrap()] {
+            let n = map.log2_side();
+            assert_eq!(map.pairs.len(), pair_start(n, 1) as usize + 4);
+            for k in 0..=n {
+                let s = 1u32 << (n - k);
+                for r in 0..s {
+                    for c in 0..=s {
+                        let at = (pair_start(n, s) + 2 * (r * (s + 1) + c)) as usize;
+                        let (c, r) = (c as i32, r as i32);
+                        assert_eq!(map.pairs[at..at + 2], [map.texel(k, c, r), map.texel(k, c, r + 1)]);
+                    }
                 }
             }
         }
