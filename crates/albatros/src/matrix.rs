@@ -108,7 +108,7 @@ impl Matrix {
     pub fn for_threads(width: u32, height: u32, config: VpConfig, n: usize) -> Result<Self, MatrixError> {
         let n = n.clamp(1, (MAX_SIDE * MAX_SIDE) as usize) as u32;
         let mut p = (n as f64).sqrt().floor() as u32;
-        while n % p != 0 {
+        while !n.is_multiple_of(p) {
             p -= 1;
         }
         Self::new(width, height, config, n / p, p, DEFAULT_TILE, n as usize)

@@ -223,7 +223,7 @@ impl Counters {
             format!("SPP fragments {} != {entering} level-{l} cells handed on", s.fragments),
         );
         check(
-            s.edge_lookups % PIXELS_PER_CELL == 0,
+            s.edge_lookups.is_multiple_of(PIXELS_PER_CELL),
             format!("SPP edge look-ups {} not a multiple of 16", s.edge_lookups),
         );
         check(

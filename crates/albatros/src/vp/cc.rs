@@ -334,7 +334,6 @@ impl<'a> CellShader<'a> {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
     #[inline]
-    #[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
     fn group_avx512(&self) -> [__m512; 3] {
         let poly = self.poly;
         let dx = _mm512_setr_ps(
@@ -547,7 +546,6 @@ fn store_colors(v: [__m256; 3], out: &mut [[f32; AVX2_LANES]; 3]) {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 #[inline]
-#[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
 fn store_cell([r, g, b]: [__m512; 3], out: &mut [Vec3; 16]) {
     const { assert!(size_of::<[Vec3; 16]>() == 192) };
     // Float `e` of store `j` is component `c` of pixel `p`, `16 j + e = 3 p + c`:
@@ -596,7 +594,6 @@ fn store_cell([r, g, b]: [__m512; 3], out: &mut [Vec3; 16]) {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 #[inline]
-#[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
 fn index_avx512(a: &[i32; 16]) -> __m512i {
     _mm512_setr_epi32(
         a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14], a[15],
@@ -607,7 +604,6 @@ fn index_avx512(a: &[i32; 16]) -> __m512i {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 #[inline]
-#[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
 fn step_avx512(q: f32, f: &FracLin, dx: __m512, dy: __m512) -> __m512 {
     _mm512_add_ps(
         _mm512_add_ps(_mm512_set1_ps(q), _mm512_mul_ps(_mm512_set1_ps(f.a), dx)),
@@ -698,7 +694,7 @@ mod tests {
             h as f32 / u32::MAX as f32
         };
         for round in 0..2000 {
-            let zero = |k: u32| if k % 2 == 0 { 0.0 } else { -0.0 };
+            let zero = |k: u32| if k.is_multiple_of(2) { 0.0 } else { -0.0 };
             let still = |c: f32| FracLin { a: zero(round), b: zero(round / 2), c };
             let moving = round % 7 == 6;
             let inv_z = if moving { FracLin { a: 1e-6, b: 0.0, c: 0.05 } } else { still(next() * 0.1 + 1e-4) };

@@ -212,7 +212,6 @@ impl TacRom {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
     #[inline]
-    #[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
     pub(crate) fn fog_avx512(&self, x: __m512) -> __m512 {
         let full = FOG_RANGE * FOG_STEPS_PER_UNIT;
         let s = _mm512_mul_ps(x, _mm512_set1_ps(FOG_STEPS_PER_UNIT as f32));
@@ -228,7 +227,6 @@ impl TacRom {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
     #[inline]
-    #[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
     pub(crate) fn log2_avx512(&self, x: __m512) -> __m512 {
         let low_bits = MANTISSA_BITS - LOG2_ADDRESS_BITS;
         let bits = _mm512_castps_si512(x);
@@ -298,7 +296,6 @@ pub(crate) fn small_int_avx2(x: __m256) -> __m256i {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 #[inline]
-#[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
 fn entries_avx512(table: &[f32], k: __m512i) -> (__m512, __m512) {
     let k = _mm512_min_epu32(k, _mm512_set1_epi32(table.len() as i32 - 2));
     // SAFETY: every lane of `k` is at most `table.len() - 2` (the `min` above):
@@ -321,7 +318,6 @@ fn entries_avx512(table: &[f32], k: __m512i) -> (__m512, __m512) {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 #[inline]
-#[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
 pub(crate) fn small_int_avx512(x: __m512) -> __m512i {
     const MAGIC: f32 = 12_582_912.0;
     _mm512_sub_epi32(
@@ -335,7 +331,6 @@ pub(crate) fn small_int_avx512(x: __m512) -> __m512i {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 #[inline]
-#[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
 pub(crate) fn floor_avx512(x: __m512) -> __m512 {
     _mm512_roundscale_ps::<{ _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC }>(x)
 }

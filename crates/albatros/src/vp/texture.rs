@@ -403,7 +403,6 @@ impl TextureMap {
     /// [`Self::sample_avx2`] over twice the lanes, the selects as masks.
     #[target_feature(enable = "avx512f")]
     #[inline]
-    #[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
     pub(crate) fn sample_avx512(&self, u: __m512, v: __m512, footprint: __m512) -> __m512 {
         let n = self.log2_side;
         let (side, top, beyond) = (self.side() as f32, n as f32, (2u32 << n) as f32);
@@ -430,7 +429,6 @@ impl TextureMap {
     /// [`Self::bilinear_avx2`] over sixteen lanes.
     #[target_feature(enable = "avx512f")]
     #[inline]
-    #[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
     fn bilinear_avx512(&self, k: __m512i, fu: __m512, fv: __m512) -> __m512 {
         let n = _mm512_set1_epi32(self.log2_side as i32);
         let level_log2 = _mm512_sub_epi32(n, k);
@@ -478,7 +476,6 @@ impl TextureMap {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 #[inline]
-#[expect(clippy::incompatible_msrv, reason = "AVX-512 is stable from Rust 1.89: rust-version to be raised")]
 fn fract01_avx512(x: __m512) -> __m512 {
     let d = _mm512_sub_ps(x, floor_avx512(x));
     _mm512_min_ps(_mm512_max_ps(d, _mm512_setzero_ps()), _mm512_set1_ps(1.0))
@@ -806,7 +803,7 @@ const BUILTIN_SIDE: u32 = 1 << BUILTIN_LOG2_SIDE;
 /// `checker`: [`CHECKER_SQUARES`] x [`CHECKER_SQUARES`] squares of `T = 1` and `T = 0`.
 fn checker(i: u32, j: u32) -> f32 {
     let square = BUILTIN_SIDE / CHECKER_SQUARES;
-    if (i / square + j / square) % 2 == 0 {
+    if (i / square + j / square).is_multiple_of(2) {
         1.0
     } else {
         0.0
@@ -834,7 +831,7 @@ fn asphalt(i: u32, j: u32) -> f32 {
     let patches = PATCHES * (value_noise(i, j, PATCH_CELLS, SEED) - 0.5) * 2.0;
     let grain = GRAIN * (unit(hash(i, j, SEED ^ 1)) - 0.5) * 2.0;
     // A few light stones.
-    let speck = if hash(i, j, SEED ^ 2) % SPECK_EVERY == 0 { 0.3 } else { 0.0 };
+    let speck = if hash(i, j, SEED ^ 2).is_multiple_of(SPECK_EVERY) { 0.3 } else { 0.0 };
     0.5 + patches + grain + speck
 }
 
