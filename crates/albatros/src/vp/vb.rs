@@ -311,6 +311,8 @@ pub struct LogScale {
     ln2: i32,
     /// 8 bits only: F2's first pass as a table ([`PairMeans`]).
     pair_means: Option<PairMeans>,
+    /// 8 bits only: the encoder ROM over every `f32` ([`Encoder8`]).
+    encoder8: Option<Encoder8>,
 }
 
 impl LogScale {
@@ -354,10 +356,12 @@ impl LogScale {
             softplus_padded,
             ln2,
             pair_means: None,
+            encoder8: None,
         };
         scale.build_encoder();
         if bits == PAIR_MEANS_BITS {
             scale.pair_means = Some(PairMeans::build(&scale));
+            scale.encoder8 = Some(Encoder8::build(&scale));
         }
         scale
     }
@@ -755,6 +759,56 @@ fn log8_gamma_table(table: &[u8], ln2: i32) -> Vec<u8> {
     g
 }
 
+/// The address shift of the 8-bit code's encoder ROM, `23 - M` with `M = 6`
+/// mantissa bits (module docs: "The tables").
+const ENCODER8_SHIFT: u32 = 17;
+/// [`Encoder8`]'s entry for every negative input (and its address bound): one past
+/// the last address of a non-negative `f32`, `0x7FFF_FFFF >> 17`.
+const ENCODER8_NEGATIVE: u32 = (u32::MAX >> 1 >> ENCODER8_SHIFT) + 1;
+
+/// The encoder ROM of the 8-bit code ([`LogScale::encode`]) over every `f32`, so that
+/// it needs no test for its range: address `min(bits >> 17, ENCODER8_NEGATIVE)`.
+/// Entry (a `u64`, one read): bits `[31:0]` the f32 bits from which the code is one
+/// more, `[39:32]` the code at the bucket's start; the code is the latter plus one
+/// where the input's bits reach the former, in 8 bits.
+///
+/// The buckets of the scale's ROM are its entries; below its first binade (zero,
+/// the denormals) the code is 0 (entry `(u32::MAX, 0)`); from 1.0 up and for
+/// infinity `Q1 = 255` (entry `(u32::MAX, 255)`, and infinity's bucket `(bits of
+/// infinity + 1, 255)`); for NaN and negative inputs 0, as `255 + 1` in 8 bits
+/// (entries `(0, 255)` after infinity's bucket and the negative inputs' entry). 128 KiB, of which the 640
+/// entries in `c_min / 2 .. 1` and the few just above 1 are read.
+#[derive(Clone, Debug, PartialEq)]
+struct Encoder8(Box<[u64; ENCODER8_NEGATIVE as usize + 1]>);
+
+impl Encoder8 {
+    fn build(scale: &LogScale) -> Self {
+        assert_eq!(scale.encoder_shift, ENCODER8_SHIFT, "the 8-bit ROM's buckets");
+        let entry = |up_from: u32, q: u8| u64::from(up_from) | u64::from(q) << 32;
+        let max = u8::try_from(scale.one).expect("Q1 of 8 bits");
+        let mut table = Box::new([entry(u32::MAX, 0); ENCODER8_NEGATIVE as usize + 1]);
+        let base = scale.encoder_base as usize;
+        for (t, &(up_from, q)) in table[base..].iter_mut().zip(&scale.encoder) {
+            *t = entry(up_from, u8::try_from(q).expect("an 8-bit code"));
+        }
+        let (one, infinity) = (1.0f32.to_bits(), f32::INFINITY.to_bits());
+        debug_assert_eq!(base + scale.encoder.len(), (one >> ENCODER8_SHIFT) as usize, "the ROM ends at 1.0");
+        let (one, inf) = ((one >> ENCODER8_SHIFT) as usize, (infinity >> ENCODER8_SHIFT) as usize);
+        table[one..inf].fill(entry(u32::MAX, max));
+        table[inf] = entry(infinity + 1, max);
+        table[inf + 1..].fill(entry(0, max));
+        Self(table)
+    }
+
+    /// [`LogScale::encode`] for 8 bits.
+    #[inline(always)]
+    fn encode(&self, c: f32) -> u8 {
+        let bits = c.to_bits();
+        let e = self.0[(bits >> ENCODER8_SHIFT).min(ENCODER8_NEGATIVE) as usize];
+        ((e >> 32) as u8).wrapping_add(u8::from(bits >= e as u32))
+    }
+}
+
 /// The linear fixed-point code of one bit count (module docs: "The linear code").
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct LinearScale {
@@ -910,8 +964,8 @@ impl VideoBuffer {
                 accumulate_log(codes, width, vis, f1, |i| colors[i].to_array().map(|c| f1.encode(c)));
             }
             Memory::Log8 { scale, codes } => {
-                let f1 = LogF1::new(scale);
-                accumulate_log(codes, width, vis, f1, |i| colors[i].to_array().map(|c| f1.encode(c)));
+                let (f1, encoder) = (LogF1::new(scale), scale.encoder8.as_ref().expect("the 8-bit encoder"));
+                accumulate_log(codes, width, vis, f1, |i| colors[i].to_array().map(|c| u16::from(encoder.encode(c))));
             }
             Memory::Linear { scale, codes } => for_visible(vis, width, |p, n, first, i| {
                 let c = colors[i].to_array();
@@ -1201,6 +1255,9 @@ impl<'a> LogF1<'a> {
     }
 }
 
+/// The bits of one row of a cell in its 16-bit masks (`first`, pixel `4 y + x`).
+const ROW_BITS: u16 = (1 << CELL_SIDE) - 1;
+
 /// F1 on the log code for one cell: pixel `i` (`4 y + x`) of the cell brings the
 /// code word `word(i)` (called only for visible pixels). A whole pixel's first
 /// fragment stores its word (eq. 3 adds `ln 1 = 0`, and the store of a whole code is
@@ -1222,6 +1279,14 @@ fn accumulate_log<W: LogWord>(
         }
         // Pixels beyond the screen's right edge have no visible subpixel.
         let start = (py + row) * width + px;
+        if sets == [FULL; 4] && (vis.first >> (4 * row)) & ROW_BITS == ROW_BITS {
+            // A row of whole first fragments (a polygon's inside): four stores,
+            // without the tests per pixel.
+            for (x, w) in codes[start..start + CELL_SIDE as usize].iter_mut().enumerate() {
+                *w = W::pack(word(4 * row + x));
+            }
+            continue;
+        }
         let words = &mut codes[start..start + (width - px).min(CELL_SIDE as usize)];
         for (x, w) in words.iter_mut().enumerate() {
             let (i, set) = (4 * row + x, sets[x]);
@@ -1871,6 +1936,34 @@ mod tests {
         assert!(LogScale::get(PAIR_MEANS_BITS + 1).pair_means.is_none());
     }
 
+    /// The 8-bit encoder over every `f32` gives the scale's ROM (itself tested against
+    /// its f64 definition): on every bucket's first, second and last patterns and on
+    /// both sides of every threshold, on a sample of all patterns, and on the special
+    /// values.
+    #[test]
+    fn encoder8_matches_encode() {
+        let s = LogScale::get(PAIR_MEANS_BITS);
+        let e = s.encoder8.as_ref().expect("the 8-bit encoder");
+        let check = |bits: u32| {
+            let c = f32::from_bits(bits);
+            assert_eq!(u16::from(e.encode(c)), s.encode(c), "encode({c:e}) of bits {bits:#x}");
+        };
+        for bucket in 0..=u32::MAX >> ENCODER8_SHIFT {
+            let lo = bucket << ENCODER8_SHIFT;
+            [lo, lo + 1, lo | ((1 << ENCODER8_SHIFT) - 1)].into_iter().for_each(check);
+        }
+        for &(up_from, _) in &s.encoder {
+            [up_from.wrapping_sub(1), up_from, up_from.wrapping_add(1)].into_iter().for_each(check);
+        }
+        (0..=u32::MAX).step_by(251).for_each(check);
+        let specials = [0.0, -0.0, 1.0, -1.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN, -f32::NAN, f32::MAX];
+        for c in specials.into_iter().chain([f32::MIN_POSITIVE, 1e-40, 0.999_999_94, 1.000_000_1]) {
+            check(c.to_bits());
+        }
+        check(0x7FC0_0001);
+        check(0xFFFF_FFFF);
+    }
+
     /// A flat run's output words are its bytes.
     #[test]
     fn pattern_words_are_the_bytes() {
@@ -2065,12 +2158,19 @@ mod tests {
             let mut expect = vec![[0u16; 3]; 64];
             for _ in 0..4000 {
                 let (px, py) = ((rng.next() % 2) as u32 * 4, (rng.next() % 2) as u32 * 4);
-                let sets: [u16; 16] = std::array::from_fn(|_| match rng.next() % 4 {
+                let mut sets: [u16; 16] = std::array::from_fn(|_| match rng.next() % 4 {
                     0 => 0,
                     1 => 0xFFFF,
                     _ => rng.next() as u16,
                 });
-                let first = rng.next() as u16;
+                let mut first = rng.next() as u16;
+                // Rows of whole first fragments (a polygon's inside), often.
+                for row in 0..4 {
+                    if rng.next() % 3 == 0 {
+                        sets[4 * row..4 * row + 4].fill(FULL);
+                        first |= ROW_BITS << (4 * row);
+                    }
+                }
                 let colors: [Vec3; 16] = std::array::from_fn(|_| {
                     Vec3::from_array(std::array::from_fn(|_| match rng.next() % 8 {
                         0 => 0.0,
