@@ -762,50 +762,66 @@ fn log8_gamma_table(table: &[u8], ln2: i32) -> Vec<u8> {
 /// The address shift of the 8-bit code's encoder ROM, `23 - M` with `M = 6`
 /// mantissa bits (module docs: "The tables").
 const ENCODER8_SHIFT: u32 = 17;
-/// [`Encoder8`]'s entry for every negative input (and its address bound): one past
-/// the last address of a non-negative `f32`, `0x7FFF_FFFF >> 17`.
-const ENCODER8_NEGATIVE: u32 = (u32::MAX >> 1 >> ENCODER8_SHIFT) + 1;
+/// [`Encoder8`]'s entries: one per address `bits >> 17` of every `f32`.
+const ENCODER8_ENTRIES: usize = 1 << (32 - ENCODER8_SHIFT);
 
 /// The encoder ROM of the 8-bit code ([`LogScale::encode`]) over every `f32`, so that
-/// it needs no test for its range: address `min(bits >> 17, ENCODER8_NEGATIVE)`.
-/// Entry (a `u64`, one read): bits `[31:0]` the f32 bits from which the code is one
-/// more, `[39:32]` the code at the bucket's start; the code is the latter plus one
-/// where the input's bits reach the former, in 8 bits.
+/// it needs no test of its input's range: address `bits >> 17`, two entries, the
+/// f32 bits `up_from` from which the code is one more than at the bucket's start,
+/// and that larger code `next` (`q + 1`, in 8 bits); the code is `next - (bits <
+/// up_from)` in 8 bits (a compare and a subtract with borrow).
 ///
 /// The buckets of the scale's ROM are its entries; below its first binade (zero,
-/// the denormals) the code is 0 (entry `(u32::MAX, 0)`); from 1.0 up and for
-/// infinity `Q1 = 255` (entry `(u32::MAX, 255)`, and infinity's bucket `(bits of
-/// infinity + 1, 255)`); for NaN and negative inputs 0, as `255 + 1` in 8 bits
-/// (entries `(0, 255)` after infinity's bucket and the negative inputs' entry). 128 KiB, of which the 640
-/// entries in `c_min / 2 .. 1` and the few just above 1 are read.
+/// the denormals) the code is 0 (`(u32::MAX, 1)`); from 1.0 up and for infinity
+/// `Q1 = 255` (`(u32::MAX, 0)`, and infinity's bucket `(bits of infinity + 1,
+/// 0)`); for NaN and negative inputs 0 (`(0, 0)` after infinity's bucket, its NaNs
+/// included). 160 KiB, of which the 640 entries in `c_min / 2 .. 1` and the few
+/// just above 1 are read.
 #[derive(Clone, Debug, PartialEq)]
-struct Encoder8(Box<[u64; ENCODER8_NEGATIVE as usize + 1]>);
+struct Encoder8 {
+    up_from: Box<[u32; ENCODER8_ENTRIES]>,
+    next: Box<[u8; ENCODER8_ENTRIES]>,
+}
 
 impl Encoder8 {
     fn build(scale: &LogScale) -> Self {
         assert_eq!(scale.encoder_shift, ENCODER8_SHIFT, "the 8-bit ROM's buckets");
-        let entry = |up_from: u32, q: u8| u64::from(up_from) | u64::from(q) << 32;
         let max = u8::try_from(scale.one).expect("Q1 of 8 bits");
-        let mut table = Box::new([entry(u32::MAX, 0); ENCODER8_NEGATIVE as usize + 1]);
+        let (mut up_from, mut next) = (Box::new([u32::MAX; ENCODER8_ENTRIES]), Box::new([1u8; ENCODER8_ENTRIES]));
         let base = scale.encoder_base as usize;
-        for (t, &(up_from, q)) in table[base..].iter_mut().zip(&scale.encoder) {
-            *t = entry(up_from, u8::try_from(q).expect("an 8-bit code"));
+        for (i, &(up, q)) in scale.encoder.iter().enumerate() {
+            (up_from[base + i], next[base + i]) = (up, u8::try_from(q).expect("an 8-bit code").wrapping_add(1));
         }
         let (one, infinity) = (1.0f32.to_bits(), f32::INFINITY.to_bits());
         debug_assert_eq!(base + scale.encoder.len(), (one >> ENCODER8_SHIFT) as usize, "the ROM ends at 1.0");
         let (one, inf) = ((one >> ENCODER8_SHIFT) as usize, (infinity >> ENCODER8_SHIFT) as usize);
-        table[one..inf].fill(entry(u32::MAX, max));
-        table[inf] = entry(infinity + 1, max);
-        table[inf + 1..].fill(entry(0, max));
-        Self(table)
+        next[one..].fill(max.wrapping_add(1));
+        up_from[inf] = infinity + 1;
+        up_from[inf + 1..].fill(0);
+        Self { up_from, next }
     }
 
+    /// The tables by reference, for a loop to keep in registers.
+    #[inline(always)]
+    fn tables(&self) -> Encoder8Tables<'_> {
+        Encoder8Tables { up_from: &self.up_from, next: &self.next }
+    }
+}
+
+/// [`Encoder8`]'s tables as a loop reads them.
+#[derive(Clone, Copy)]
+struct Encoder8Tables<'a> {
+    up_from: &'a [u32; ENCODER8_ENTRIES],
+    next: &'a [u8; ENCODER8_ENTRIES],
+}
+
+impl Encoder8Tables<'_> {
     /// [`LogScale::encode`] for 8 bits.
     #[inline(always)]
-    fn encode(&self, c: f32) -> u8 {
+    fn encode(self, c: f32) -> u8 {
         let bits = c.to_bits();
-        let e = self.0[(bits >> ENCODER8_SHIFT).min(ENCODER8_NEGATIVE) as usize];
-        ((e >> 32) as u8).wrapping_add(u8::from(bits >= e as u32))
+        let address = (bits >> ENCODER8_SHIFT) as usize;
+        self.next[address].wrapping_sub(u8::from(bits < self.up_from[address]))
     }
 }
 
@@ -964,7 +980,7 @@ impl VideoBuffer {
                 accumulate_log(codes, width, vis, f1, |i| colors[i].to_array().map(|c| f1.encode(c)));
             }
             Memory::Log8 { scale, codes } => {
-                let (f1, encoder) = (LogF1::new(scale), scale.encoder8.as_ref().expect("the 8-bit encoder"));
+                let (f1, encoder) = (LogF1::new(scale), scale.encoder8.as_ref().expect("the 8-bit encoder").tables());
                 accumulate_log(codes, width, vis, f1, |i| colors[i].to_array().map(|c| u16::from(encoder.encode(c))));
             }
             Memory::Linear { scale, codes } => for_visible(vis, width, |p, n, first, i| {
@@ -1943,7 +1959,7 @@ mod tests {
     #[test]
     fn encoder8_matches_encode() {
         let s = LogScale::get(PAIR_MEANS_BITS);
-        let e = s.encoder8.as_ref().expect("the 8-bit encoder");
+        let e = s.encoder8.as_ref().expect("the 8-bit encoder").tables();
         let check = |bits: u32| {
             let c = f32::from_bits(bits);
             assert_eq!(u16::from(e.encode(c)), s.encode(c), "encode({c:e}) of bits {bits:#x}");
