@@ -1006,9 +1006,9 @@ impl VideoBuffer {
                 accumulate_log_flat(codes, width, vis, f1, word);
             }
             Memory::Log8 { scale, codes } => {
-                let f1 = LogF1::new(scale);
-                let word = color.to_array().map(|c| f1.encode(c));
-                accumulate_log_flat(codes, width, vis, f1, word);
+                let encoder = scale.encoder8.as_ref().expect("the 8-bit encoder").tables();
+                let word = color.to_array().map(|c| u16::from(encoder.encode(c)));
+                accumulate_log_flat(codes, width, vis, LogF1::new(scale), word);
             }
             Memory::Float(_) | Memory::Linear { .. } => self.accumulate(vis, &[color; 16]),
         }
@@ -1333,9 +1333,12 @@ fn accumulate_log<W: LogWord>(
 #[inline(always)]
 fn accumulate_log_flat<W: LogWord>(codes: &mut [W], width: usize, vis: &Visible, f1: LogF1, word: [u16; 3]) {
     if vis.first == FULL && vis.sets == [FULL; 16] {
-        let (px, py, packed) = (vis.px as usize, vis.py as usize, W::pack(word));
-        for y in py..py + CELL_SIDE as usize {
-            codes[y * width + px..][..CELL_SIDE as usize].fill(packed);
+        let (side, packed) = (CELL_SIDE as usize, W::pack(word));
+        // The cell's rows in one slice (one bounds check).
+        let start = vis.py as usize * width + vis.px as usize;
+        let cell = &mut codes[start..start + (side - 1) * width + side];
+        for row in 0..side {
+            cell[row * width..row * width + side].fill(packed);
         }
         return;
     }
