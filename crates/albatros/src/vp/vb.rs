@@ -1702,16 +1702,9 @@ fn read_out_log8_from<'a>(
                 read_out_log8_pass2_end(out_run, &line[x0..], pairs, table);
             }
         }
-        let (tail_out, whole_runs) = (runs_out.into_remainder(), w / F2_RUN);
-        let x0 = whole_runs * F2_RUN;
-        if flat_runs.get(whole_runs) == Some(&true) {
-            // A whole flat run of pass 1, the row's last: its value (as above).
-            let (value, next) = (line[x0], line.get(x0 + F2_RUN));
-            debug_assert!(next.is_none(), "the row's last run");
-            tail_out.copy_from_slice(&pattern_bytes(pixel(value))[..tail_out.len()]);
-        } else {
-            read_out_log8_pass2_end(tail_out, &line[x0..], pairs, table);
-        }
+        // The row's last run if it is short (pass 1 made it a tail, never flat).
+        let x0 = w / F2_RUN * F2_RUN;
+        read_out_log8_pass2_end(runs_out.into_remainder(), &line[x0..], pairs, table);
     }
 }
 
@@ -1727,14 +1720,16 @@ fn read_out_log8_pass2_end(out: &mut [u8], line: &[Line8], pairs: &PairMeans, ta
     }
 }
 
-/// The output bytes of a run of [`F2_RUN`] pixels of one colour.
-#[inline(always)]
+/// The output bytes of a run of [`F2_RUN`] pixels of one colour (the definition of
+/// [`pattern`]).
+#[cfg(test)]
 fn pattern_bytes(rgb: [u8; 3]) -> [u8; 3 * F2_RUN] {
     std::array::from_fn(|i| rgb[i % 3])
 }
 
-/// [`pattern_bytes`] as three little-endian words, made by shifts (from bytes, the
-/// compiler keeps them apart and stores them one by one).
+/// The output bytes of a run of [`F2_RUN`] pixels of one colour as three
+/// little-endian words, made by shifts (from bytes, the compiler keeps them apart
+/// and stores them one by one).
 #[inline(always)]
 fn pattern(rgb: [u8; 3]) -> [u64; 3] {
     const BYTE: u32 = 8;
