@@ -311,6 +311,8 @@ pub struct LogScale {
     ln2: i32,
     /// 8 bits only: F2's first pass as a table ([`PairMeans`]).
     pair_means: Option<PairMeans>,
+    /// 8 bits only: the encoder ROM over every `f32` ([`Encoder8`]).
+    encoder8: Option<Encoder8>,
 }
 
 impl LogScale {
@@ -354,10 +356,12 @@ impl LogScale {
             softplus_padded,
             ln2,
             pair_means: None,
+            encoder8: None,
         };
         scale.build_encoder();
         if bits == PAIR_MEANS_BITS {
             scale.pair_means = Some(PairMeans::build(&scale));
+            scale.encoder8 = Some(Encoder8::build(&scale));
         }
         scale
     }
@@ -648,41 +652,67 @@ const PAIR_MEANS_BITS: u32 = 8;
 /// other one gives the same means: its difference from a value (at least code 1,
 /// 4 quarter codes) is above 4100, past the end of the 8-bit `ln(1 + e^x)` table
 /// (988 entries), so a mean with it is `hi - T[0]` raised to code 1, as with
-/// `LogFine::ZERO`; and two of them give itself. Masked as a gamma address it reads
-/// one of the padding's zeros (checked at compile time below).
+/// `LogFine::ZERO`; and two of them give itself. As an address of
+/// [`log8_gamma_table`] (a `u16`, 61440) it reads one of the zeros between the
+/// codes' entries and the raised ones (checked at compile time below: `T[0]` is less
+/// than `4 Q1`).
 const LOG8_ZERO: i16 = -4096;
 
 const _: () = assert!(
-    (LOG8_ZERO as i32 as usize & (GAMMA_PADDED - 1)) > 4 * ((1 << PAIR_MEANS_BITS) - 1),
-    "zero's gamma address lies in the padding"
+    LOG8_ZERO as u16 as usize > 4 * ((1 << PAIR_MEANS_BITS) - 1)
+        && (LOG8_ZERO as u16 as usize) < LOG8_ADDRESSES - 4 * ((1 << PAIR_MEANS_BITS) - 1),
+    "zero's gamma address lies between the codes' and the raised ones"
 );
 
-/// F2's first pass for the 8-bit log code as a table (P1's F2 was a table-driven
-/// adder too): entry `a << 8 | b` is the half sum `mean(load(a), load(b))` of two
-/// stored codes in quarter codes, [`LOG8_ZERO`] for zero. One read in place of the
-/// half sum's nine operations (max, min, difference, clamp, `T` read, two
-/// additions, the raise to code 1); 128 KiB, built once.
+/// Entries of the 8-bit code's second-pass tables ([`PairMeans::softplus`] and the
+/// readout's gamma table, [`log8_gamma_table`]): every `u16`, so that an `i16`
+/// difference or F2 result read as a `u16` addresses them with neither a bounds
+/// check nor a clamp.
+const LOG8_ADDRESSES: usize = 1 << 16;
+
+/// F2's tables for the 8-bit log code (P1's F2 was a table-driven adder too).
+///
+/// - `means`, the first pass: entry `a << 8 | b` is the half sum `mean(load(a),
+///   load(b))` of two stored codes in quarter codes, [`LOG8_ZERO`] for zero. One read
+///   in place of the half sum's nine operations (max, min, difference, clamp, `T`
+///   read, two additions, the raise to code 1); 128 KiB.
+/// - `softplus`, the second pass: `T[d]` ([`LogScale::softplus_table`], at most
+///   `T[0] = 118` for 8 bits, so a byte) at every `d` as a `u16`, 0 past the table's
+///   end: the padded table's `T[min(d, 2^14 - 1)]` for every difference of two
+///   `i16`, with no clamp; 64 KiB, of which the first 988 entries are read but for
+///   a mean with zero.
+///
+/// Built once.
 #[derive(Clone, Debug, PartialEq)]
-struct PairMeans(Box<[i16; 1 << (2 * PAIR_MEANS_BITS)]>);
+struct PairMeans {
+    means: Box<[i16; 1 << (2 * PAIR_MEANS_BITS)]>,
+    softplus: Box<[u8; LOG8_ADDRESSES]>,
+    /// `T[0]`, in the line buffer's `i16`.
+    ln2: i16,
+}
 
 impl PairMeans {
     fn build(scale: &LogScale) -> Self {
         let arith = LogArith::new(scale);
         let load = |q: u16| LogFine::from_code(q).0;
-        let mut table = Box::new([0i16; 1 << (2 * PAIR_MEANS_BITS)]);
-        for (i, m) in table.iter_mut().enumerate() {
+        let mut means = Box::new([0i16; 1 << (2 * PAIR_MEANS_BITS)]);
+        for (i, m) in means.iter_mut().enumerate() {
             let (a, b) = ((i >> PAIR_MEANS_BITS) as u16, (i & ((1 << PAIR_MEANS_BITS) - 1)) as u16);
             let v = arith.mean(load(a), load(b));
             *m = if v == LogFine::ZERO.0 { LOG8_ZERO } else { v as i16 };
         }
-        Self(table)
+        let mut softplus = Box::new([0u8; LOG8_ADDRESSES]);
+        for (d, t) in softplus.iter_mut().enumerate() {
+            *t = u8::try_from(arith.softplus(d as i32)).expect("the 8-bit table's entries fit a byte");
+        }
+        Self { means, softplus, ln2: i16::try_from(scale.ln2).expect("T[0] fits an i16") }
     }
 
     /// The half sum of two stored codes.
     #[inline(always)]
     #[cfg(test)]
     fn mean(&self, a: u16, b: u16) -> i16 {
-        self.0[usize::from(a & 0xFF) << PAIR_MEANS_BITS | usize::from(b & 0xFF)]
+        self.means[usize::from(a & 0xFF) << PAIR_MEANS_BITS | usize::from(b & 0xFF)]
     }
 
     /// The half sums of two VMEM words, component by component, as a [`Line8`].
@@ -690,19 +720,109 @@ impl PairMeans {
     fn mean_words(&self, a: Word8, b: Word8) -> Line8 {
         let at = |ch: u32| {
             let (a, b) = ((a >> (WORD8_SHIFT * ch)) & 0xFF, (b >> (WORD8_SHIFT * ch)) & 0xFF);
-            self.0[(a << PAIR_MEANS_BITS | b) as usize]
+            self.means[(a << PAIR_MEANS_BITS | b) as usize]
         };
         [at(0), at(1), at(2), 0]
     }
+
+    /// F2's second pass on two of the line buffer's values (each [`LOG8_ZERO`] or
+    /// at least code 1), as the address of the output in [`log8_gamma_table`]:
+    /// [`LogArith::mean`]'s `hi + T[hi - lo] - T[0]` before its raise to code 1 (the
+    /// table's entries below code 1 do the raise), as a `u16`.
+    #[inline(always)]
+    fn mean_address(&self, a: i16, b: i16) -> u16 {
+        let (hi, lo) = (a.max(b), a.min(b));
+        Self::address(hi.wrapping_sub(self.ln2), self.softplus[usize::from(hi.wrapping_sub(lo) as u16)])
+    }
+
+    /// `hi - T[0]` and `T[hi - lo]` to [`Self::mean_address`]'s address.
+    #[inline(always)]
+    fn address(hi_less_ln2: i16, t: u8) -> u16 {
+        hi_less_ln2.wrapping_add(i16::from(t)) as u16
+    }
 }
 
-/// F2's second pass on the 8-bit code's line buffer: [`LogArith::mean`] with zero as
-/// [`LOG8_ZERO`] (the same results: see there), widened to `i32`.
-#[inline(always)]
-fn mean_log8(arith: LogArith, a: i16, b: i16) -> i32 {
-    let (a, b) = (i32::from(a), i32::from(b));
-    let (hi, lo) = (a.max(b), a.min(b));
-    (hi + arith.softplus(hi - lo) - arith.ln2).max(hi.min(FINE_PER_CODE))
+/// The 8-bit code's gamma table: an F2 result `v` before its raise to code 1
+/// ([`PairMeans::mean_address`]) or a loaded code, read as a `u16`, to the output
+/// byte. F2's second pass gives either [`LOG8_ZERO`] (two zeros: entry 0) or `hi + T
+/// - T[0]` for `hi` at least code 1, in `4 - T[0] ..= 4 Q1`, whose values below code
+/// 1 are raised to it: entries `0..4` and the top `T[0] - 4` (the negative ones) hold
+/// code 1's output, `4..=4 Q1` the gamma table's, the rest 0. `table`: the scale's
+/// [`LogScale::gamma_table`].
+fn log8_gamma_table(table: &[u8], ln2: i32) -> Vec<u8> {
+    let mut g = vec![0u8; LOG8_ADDRESSES];
+    g[..table.len()].copy_from_slice(table);
+    let code_one = table[FINE_PER_CODE as usize];
+    g[..FINE_PER_CODE as usize].fill(code_one);
+    g[LOG8_ADDRESSES - (ln2 - FINE_PER_CODE) as usize..].fill(code_one);
+    debug_assert_eq!(g[usize::from(LOG8_ZERO as u16)], 0, "zero's address is below the raised ones");
+    g
+}
+
+/// The address shift of the 8-bit code's encoder ROM, `23 - M` with `M = 6`
+/// mantissa bits (module docs: "The tables").
+const ENCODER8_SHIFT: u32 = 17;
+/// [`Encoder8`]'s entries: one per address `bits >> 17` of every `f32`.
+const ENCODER8_ENTRIES: usize = 1 << (32 - ENCODER8_SHIFT);
+
+/// The encoder ROM of the 8-bit code ([`LogScale::encode`]) over every `f32`, so that
+/// it needs no test of its input's range: address `bits >> 17`, two entries, the
+/// f32 bits `up_from` from which the code is one more than at the bucket's start,
+/// and that larger code `next` (`q + 1`, in 8 bits); the code is `next - (bits <
+/// up_from)` in 8 bits (a compare and a subtract with borrow).
+///
+/// The buckets of the scale's ROM are its entries; below its first binade (zero,
+/// the denormals) the code is 0 (`(u32::MAX, 1)`); from 1.0 up and for infinity
+/// `Q1 = 255` (`(u32::MAX, 0)`, and infinity's bucket `(bits of infinity + 1,
+/// 0)`); for NaN and negative inputs 0 (`(0, 0)` after infinity's bucket, its NaNs
+/// included). 160 KiB, of which the 640 entries in `c_min / 2 .. 1` and the few
+/// just above 1 are read.
+#[derive(Clone, Debug, PartialEq)]
+struct Encoder8 {
+    up_from: Box<[u32; ENCODER8_ENTRIES]>,
+    next: Box<[u8; ENCODER8_ENTRIES]>,
+}
+
+impl Encoder8 {
+    fn build(scale: &LogScale) -> Self {
+        assert_eq!(scale.encoder_shift, ENCODER8_SHIFT, "the 8-bit ROM's buckets");
+        let max = u8::try_from(scale.one).expect("Q1 of 8 bits");
+        let (mut up_from, mut next) = (Box::new([u32::MAX; ENCODER8_ENTRIES]), Box::new([1u8; ENCODER8_ENTRIES]));
+        let base = scale.encoder_base as usize;
+        for (i, &(up, q)) in scale.encoder.iter().enumerate() {
+            (up_from[base + i], next[base + i]) = (up, u8::try_from(q).expect("an 8-bit code").wrapping_add(1));
+        }
+        let (one, infinity) = (1.0f32.to_bits(), f32::INFINITY.to_bits());
+        debug_assert_eq!(base + scale.encoder.len(), (one >> ENCODER8_SHIFT) as usize, "the ROM ends at 1.0");
+        let (one, inf) = ((one >> ENCODER8_SHIFT) as usize, (infinity >> ENCODER8_SHIFT) as usize);
+        next[one..].fill(max.wrapping_add(1));
+        up_from[inf] = infinity + 1;
+        up_from[inf + 1..].fill(0);
+        Self { up_from, next }
+    }
+
+    /// The tables by reference, for a loop to keep in registers.
+    #[inline(always)]
+    fn tables(&self) -> Encoder8Tables<'_> {
+        Encoder8Tables { up_from: &self.up_from, next: &self.next }
+    }
+}
+
+/// [`Encoder8`]'s tables as a loop reads them.
+#[derive(Clone, Copy)]
+struct Encoder8Tables<'a> {
+    up_from: &'a [u32; ENCODER8_ENTRIES],
+    next: &'a [u8; ENCODER8_ENTRIES],
+}
+
+impl Encoder8Tables<'_> {
+    /// [`LogScale::encode`] for 8 bits.
+    #[inline(always)]
+    fn encode(self, c: f32) -> u8 {
+        let bits = c.to_bits();
+        let address = (bits >> ENCODER8_SHIFT) as usize;
+        self.next[address].wrapping_sub(u8::from(bits < self.up_from[address]))
+    }
 }
 
 /// The linear fixed-point code of one bit count (module docs: "The linear code").
@@ -857,11 +977,12 @@ impl VideoBuffer {
             }),
             Memory::Log { scale, codes } => {
                 let f1 = LogF1::new(scale);
-                accumulate_log(codes, width, vis, f1, |i| colors[i].to_array().map(|c| f1.encode(c)));
+                accumulate_log::<_, true>(codes, width, vis, f1, |i| colors[i].to_array().map(|c| f1.encode(c)));
             }
             Memory::Log8 { scale, codes } => {
-                let f1 = LogF1::new(scale);
-                accumulate_log(codes, width, vis, f1, |i| colors[i].to_array().map(|c| f1.encode(c)));
+                let (f1, encoder) = (LogF1::new(scale), scale.encoder8.as_ref().expect("the 8-bit encoder").tables());
+                let word = |i: usize| colors[i].to_array().map(|c| u16::from(encoder.encode(c)));
+                accumulate_log::<_, true>(codes, width, vis, f1, word);
             }
             Memory::Linear { scale, codes } => for_visible(vis, width, |p, n, first, i| {
                 let c = colors[i].to_array();
@@ -886,9 +1007,9 @@ impl VideoBuffer {
                 accumulate_log_flat(codes, width, vis, f1, word);
             }
             Memory::Log8 { scale, codes } => {
-                let f1 = LogF1::new(scale);
-                let word = color.to_array().map(|c| f1.encode(c));
-                accumulate_log_flat(codes, width, vis, f1, word);
+                let encoder = scale.encoder8.as_ref().expect("the 8-bit encoder").tables();
+                let word = color.to_array().map(|c| u16::from(encoder.encode(c)));
+                accumulate_log_flat(codes, width, vis, LogF1::new(scale), word);
             }
             Memory::Float(_) | Memory::Linear { .. } => self.accumulate(vis, &[color; 16]),
         }
@@ -976,12 +1097,12 @@ impl VideoBuffer {
         }
         let Memory::Log8 { scale, .. } = &first.memory else { return false };
         let Some(owners) = owners.into_iter().collect::<Option<Vec<_>>>() else { return false };
-        if tile % F2_RUN != 0 || w == 0 || h == 0 {
+        if tile % LOG8_RUN != 0 || w == 0 || h == 0 {
             return false;
         }
         let pairs = scale.pair_means.as_ref().expect("the 8-bit scale has the pair table");
-        let (arith, table) = (LogArith::new(scale), first.gamma_table(opts));
-        let table: &[u8; GAMMA_PADDED] = table.as_slice().try_into().expect("a padded gamma table");
+        let table = first.gamma_table(opts);
+        let table: &[u8; LOG8_ADDRESSES] = table.as_slice().try_into().expect("the 8-bit gamma table");
         // Pixels `x0..` of row `y` to the end of their tile, from its VP.
         let segment = |y: usize, x0: usize| {
             let codes = owners[(y / tile) % q * p + (x0 / tile) % p];
@@ -995,7 +1116,7 @@ impl VideoBuffer {
         image.pixels.par_chunks_mut(band * w * 3).enumerate().for_each(|(k, out)| {
             let y0 = k * band;
             let rows = y0..(y0 + band).min(h);
-            read_out_log8_from(w, h, tile, &segment, opts.filter, pairs, arith, table, rows, out);
+            read_out_log8_from(w, h, tile, &segment, opts.filter, pairs, table, rows, out);
         });
         true
     }
@@ -1007,11 +1128,13 @@ impl VideoBuffer {
     }
 
     /// The mode's gamma table for `opts` (the fixed-point ones padded to
-    /// [`GAMMA_PADDED`] entries).
+    /// [`GAMMA_PADDED`] entries, the 8-bit log code's to [`LOG8_ADDRESSES`]:
+    /// [`log8_gamma_table`]).
     fn gamma_table(&self, opts: &Readout) -> Vec<u8> {
         match &self.memory {
             Memory::Float(_) => gamma_table(opts.gamma),
-            Memory::Log { scale, .. } | Memory::Log8 { scale, .. } => padded(scale.gamma_table(opts.gamma)),
+            Memory::Log { scale, .. } => padded(scale.gamma_table(opts.gamma)),
+            Memory::Log8 { scale, .. } => log8_gamma_table(&scale.gamma_table(opts.gamma), scale.ln2),
             Memory::Linear { scale, .. } => padded(scale.gamma_table(opts.gamma)),
         }
     }
@@ -1026,9 +1149,9 @@ impl VideoBuffer {
                 read_out_fine(w, h, codes, opts.filter, LogArith::new(scale), table, rows, out)
             }
             Memory::Log8 { scale, codes } => {
-                let table = table.try_into().expect("a padded gamma table");
+                let table = table.try_into().expect("the 8-bit gamma table");
                 let pairs = scale.pair_means.as_ref().expect("the 8-bit scale has the pair table");
-                read_out_log8(w, h, codes, opts.filter, pairs, LogArith::new(scale), table, rows, out)
+                read_out_log8(w, h, codes, opts.filter, pairs, table, rows, out)
             }
             Memory::Linear { scale, codes } => {
                 let table = table.try_into().expect("a padded gamma table");
@@ -1149,13 +1272,19 @@ impl<'a> LogF1<'a> {
     }
 }
 
+/// The bits of one row of a cell in its 16-bit masks (`first`, pixel `4 y + x`).
+const ROW_BITS: u16 = (1 << CELL_SIDE) - 1;
+
 /// F1 on the log code for one cell: pixel `i` (`4 y + x`) of the cell brings the
 /// code word `word(i)` (called only for visible pixels). A whole pixel's first
 /// fragment stores its word (eq. 3 adds `ln 1 = 0`, and the store of a whole code is
 /// the code); a partial one adds `ln S` (eq. 3); a later one is summed with the
-/// stored word (eq. 4).
+/// stored word (eq. 4). `ROW_STORES`: a row of four whole first fragments is stored
+/// without the tests per pixel (city's colour + VB 265 -> 239 M instructions); not
+/// for one word over the cell, whose whole cells are filled before and whose other
+/// rows are mostly partial (many's small triangles: the test costs 3 %).
 #[inline(always)]
-fn accumulate_log<W: LogWord>(
+fn accumulate_log<W: LogWord, const ROW_STORES: bool>(
     codes: &mut [W],
     width: usize,
     vis: &Visible,
@@ -1170,6 +1299,14 @@ fn accumulate_log<W: LogWord>(
         }
         // Pixels beyond the screen's right edge have no visible subpixel.
         let start = (py + row) * width + px;
+        if ROW_STORES && sets == [FULL; 4] && (vis.first >> (4 * row)) & ROW_BITS == ROW_BITS {
+            // A row of whole first fragments (a polygon's inside): four stores,
+            // without the tests per pixel.
+            for (x, w) in codes[start..start + CELL_SIDE as usize].iter_mut().enumerate() {
+                *w = W::pack(word(4 * row + x));
+            }
+            continue;
+        }
         let words = &mut codes[start..start + (width - px).min(CELL_SIDE as usize)];
         for (x, w) in words.iter_mut().enumerate() {
             let (i, set) = (4 * row + x, sets[x]);
@@ -1200,13 +1337,16 @@ fn accumulate_log<W: LogWord>(
 #[inline(always)]
 fn accumulate_log_flat<W: LogWord>(codes: &mut [W], width: usize, vis: &Visible, f1: LogF1, word: [u16; 3]) {
     if vis.first == FULL && vis.sets == [FULL; 16] {
-        let (px, py, packed) = (vis.px as usize, vis.py as usize, W::pack(word));
-        for y in py..py + CELL_SIDE as usize {
-            codes[y * width + px..][..CELL_SIDE as usize].fill(packed);
+        let (side, packed) = (CELL_SIDE as usize, W::pack(word));
+        // The cell's rows in one slice (one bounds check).
+        let start = vis.py as usize * width + vis.px as usize;
+        let cell = &mut codes[start..start + (side - 1) * width + side];
+        for row in 0..side {
+            cell[row * width..row * width + side].fill(packed);
         }
         return;
     }
-    accumulate_log(codes, width, vis, f1, |_| word);
+    accumulate_log::<_, false>(codes, width, vis, f1, |_| word);
 }
 
 /// A VMEM word of three log codes.
@@ -1383,6 +1523,13 @@ fn padded(mut table: Vec<u8>) -> Vec<u8> {
 /// are summed without a branch per pixel.
 const F2_RUN: usize = 8;
 
+/// Pixels the 8-bit code's F2 takes at a time ([`F2_RUN`] of the other codes): a
+/// run equal to its neighbours is one half sum and one output pattern, the others
+/// go through the tables side by side. Instructions per frame of the readout at
+/// 1920 x 1080 by run: 8: rombm 18.2 M, city 41.4, default 72.8; 16: 14.0, 39.2,
+/// 54.9; 32: 11.0, 51.4, 57.0 (fewer flat runs on city); 64: 7.7, 66.1, 57.7.
+const LOG8_RUN: usize = 16;
+
 /// The fixed-point paths' readout: F2 on quarter codes, then the gamma table.
 ///
 /// The gamma table's address of a result is the result masked with
@@ -1460,11 +1607,12 @@ fn read_out_fine(
 
 /// [`read_out_fine`] for the 8-bit log code in [`Word8`]s: F2's first pass by the
 /// [`PairMeans`] table into a line buffer of [`Line8`]s, the second by
-/// [`mean_log8`]. Where a run of [`F2_RUN`] pixels is flat (every word of the run
-/// and of the run below the same: a face of one colour, the open sky) the first pass
-/// makes one half sum for the run; where the line buffer is flat over a run and the
-/// pixel after it, the second pass makes one output pixel for the run. The same
-/// bytes as `read_out_fine` (the tests compare both with the reference readout).
+/// [`PairMeans::mean_address`] into [`log8_gamma_table`]. Where a run of [`LOG8_RUN`]
+/// pixels is flat (every word of the run and of the run below the same: a face of
+/// one colour, the open sky) the first pass makes one half sum for the run; where
+/// the line buffer is flat over a run and the pixel after it, the second pass makes
+/// one output pixel for the run. The same bytes as `read_out_fine` (the tests
+/// compare both with the reference readout).
 #[allow(clippy::too_many_arguments, reason = "the readout's registers, passed as they are")]
 fn read_out_log8(
     w: usize,
@@ -1472,18 +1620,17 @@ fn read_out_log8(
     codes: &[Word8],
     filter: bool,
     pairs: &PairMeans,
-    arith: LogArith,
-    table: &[u8; GAMMA_PADDED],
+    table: &[u8; LOG8_ADDRESSES],
     rows: std::ops::Range<usize>,
     out: &mut [u8],
 ) {
     let segment = |y: usize, x0: usize| &codes[y * w + x0..(y + 1) * w];
-    read_out_log8_from(w, h, w.max(1), &segment, filter, pairs, arith, table, rows, out);
+    read_out_log8_from(w, h, w.max(1), &segment, filter, pairs, table, rows, out);
 }
 
 /// [`read_out_log8`] with row `y` read from `segment(y, x0)`: the words of pixels
 /// `x0..` of row `y` up to the next multiple of `seg` (or the row's end), `x0` a
-/// multiple of `seg`, `seg` a multiple of [`F2_RUN`] or the whole width. A matrix's
+/// multiple of `seg`, `seg` a multiple of [`LOG8_RUN`] or the whole width. A matrix's
 /// readout reads each tile's pixels from the VP that owns it, with no copy of the
 /// memories into one.
 #[allow(clippy::too_many_arguments, reason = "the readout's registers, passed as they are")]
@@ -1494,8 +1641,7 @@ fn read_out_log8_from<'a>(
     segment: &impl Fn(usize, usize) -> &'a [Word8],
     filter: bool,
     pairs: &PairMeans,
-    arith: LogArith,
-    table: &[u8; GAMMA_PADDED],
+    table: &[u8; LOG8_ADDRESSES],
     rows: std::ops::Range<usize>,
     out: &mut [u8],
 ) {
@@ -1503,11 +1649,17 @@ fn read_out_log8_from<'a>(
         return;
     }
     assert!(out.len() >= 3 * w * rows.len(), "out holds the rows");
-    let gamma = |v: i16| table[i32::from(v) as usize & (GAMMA_PADDED - 1)];
-    let pixel = |l: Line8| [gamma(lane(l, 0)), gamma(lane(l, 1)), gamma(lane(l, 2))];
+    // A loaded code or a first-pass mean (`LOG8_ZERO` or at least code 1) is its own
+    // address in the 8-bit gamma table.
+    let pixel = |l: Line8| [0, 1, 2].map(|ch| table[usize::from(l[ch] as u16)]);
+    // The line buffer: pass 1's half sums, of a flat run only the first.
     let mut line: Vec<Line8> = vec![[0; 4]; w];
     // Per run of the line buffer: whether pass 1 found it flat.
-    let mut flat_runs = vec![false; w.div_ceil(F2_RUN)];
+    let mut flat_runs = vec![false; w.div_ceil(LOG8_RUN)];
+    // The last flat run's word and its half sum (flat areas repeat them).
+    let mut flat_mean: (Word8, Line8) = (0, pairs.mean_words(0, 0));
+    // The last flat run's value and its output pixels.
+    let mut flat_out: (Line8, [u64; 3]) = (flat_mean.1, pattern(pixel(flat_mean.1)));
     for (y, out_row) in rows.zip(out.chunks_exact_mut(3 * w)) {
         if !filter {
             for x0 in (0..w).step_by(seg) {
@@ -1523,56 +1675,164 @@ fn read_out_log8_from<'a>(
         for x0 in (0..w).step_by(seg) {
             let (row, below) = (segment(y, x0), segment(below_y, x0));
             let n = row.len().min(below.len());
-            let (line, flat_runs) = (&mut line[x0..x0 + n], &mut flat_runs[x0 / F2_RUN..]);
-            read_out_log8_pass1(line, &row[..n], &below[..n], flat_runs, pairs);
+            let (line, flat_runs) = (&mut line[x0..x0 + n], &mut flat_runs[x0 / LOG8_RUN..]);
+            read_out_log8_pass1(line, &row[..n], &below[..n], flat_runs, &mut flat_mean, pairs);
         }
-        // Pass 2: half sums of horizontally adjacent ones; the last column's own
-        // value stands in for its right neighbour, and its mean with itself is
-        // itself.
-        let (row_out, last) = out_row.split_last_chunk_mut::<3>().expect("a row holds a pixel");
-        for (k, out_run) in row_out.chunks_mut(3 * F2_RUN).enumerate() {
-            let x0 = k * F2_RUN;
-            let n = out_run.len() / 3;
-            let run = &line[x0..=x0 + n];
-            let first = run[0];
-            // Flat when pass 1 made the run one value and the pixel after it has it.
-            if flat_runs[k] && run[n] == first {
-                let rgb = pixel(first);
-                let pattern: [u8; 3 * F2_RUN] = std::array::from_fn(|i| rgb[i % 3]);
-                out_run.copy_from_slice(&pattern[..out_run.len()]);
-            } else {
-                for ((px, a), b) in out_run.chunks_exact_mut(3).zip(run).zip(&run[1..]) {
-                    // The three half sums side by side (and the spare lane's).
-                    let m: [i32; 4] = std::array::from_fn(|ch| mean_log8(arith, a[ch], b[ch]));
-                    for (o, m) in px.iter_mut().zip(m) {
-                        *o = table[m as usize & (GAMMA_PADDED - 1)];
-                    }
+        // Pass 2: half sums of horizontally adjacent ones, a run at a time; the
+        // last column's own value stands in for its right neighbour, and its mean
+        // with itself is itself.
+        let mut runs_out = out_row.chunks_exact_mut(3 * LOG8_RUN);
+        for (k, out_run) in runs_out.by_ref().enumerate() {
+            let out_run: &mut [u8; 3 * LOG8_RUN] = out_run.try_into().expect("a whole run");
+            let x0 = k * LOG8_RUN;
+            // The first pixel after the run, if there is one.
+            let next = line.get(x0 + LOG8_RUN);
+            if flat_runs[k] {
+                // Every half sum of the run's pixels but the last is its value (the
+                // mean of a value with itself), and so is the last's if the pixel
+                // after it has the value or there is none.
+                let value = line[x0];
+                if flat_out.0 != value {
+                    flat_out = (value, pattern(pixel(value)));
                 }
+                for (o, p) in out_run.chunks_exact_mut(8).zip(flat_out.1.iter().cycle()) {
+                    o.copy_from_slice(&p.to_le_bytes());
+                }
+                match next {
+                    Some(next) if *next != value => {
+                        for (ch, o) in out_run[3 * (LOG8_RUN - 1)..].iter_mut().enumerate() {
+                            *o = table[usize::from(pairs.mean_address(value[ch], next[ch]))];
+                        }
+                    }
+                    _ => {}
+                }
+            } else if next.is_some() {
+                let run = line[x0..=x0 + LOG8_RUN].try_into().expect("a run and the pixel after it");
+                read_out_log8_pass2(out_run, run, pairs, table);
+            } else {
+                read_out_log8_pass2_end(out_run, &line[x0..], pairs, table);
             }
         }
-        *last = pixel(line[w - 1]);
+        // The row's last run if it is short (pass 1 made it a tail, never flat).
+        let x0 = w / LOG8_RUN * LOG8_RUN;
+        read_out_log8_pass2_end(runs_out.into_remainder(), &line[x0..], pairs, table);
     }
 }
 
-/// F2's first pass over a stretch of a row (`row`) and the row below it, into the
-/// line buffer, a run of [`F2_RUN`] at a time: one half sum for a flat run (every
-/// word of the run and of the run below the same), recorded in `flat_runs`.
+/// F2's second pass over the last pixels of a row (`line`: their half sums from
+/// pass 1), the last one's own value standing in for its right neighbour.
 #[inline(always)]
-fn read_out_log8_pass1(line: &mut [Line8], row: &[Word8], below: &[Word8], flat_runs: &mut [bool], pairs: &PairMeans) {
-    let runs = line.chunks_mut(F2_RUN).zip(row.chunks(F2_RUN)).zip(below.chunks(F2_RUN));
-    for (((l, a), b), flat_run) in runs.zip(flat_runs) {
+fn read_out_log8_pass2_end(out: &mut [u8], line: &[Line8], pairs: &PairMeans, table: &[u8; LOG8_ADDRESSES]) {
+    for (i, px) in out.chunks_exact_mut(3).enumerate() {
+        let (a, b) = (line[i], line[(i + 1).min(line.len() - 1)]);
+        for (ch, o) in px.iter_mut().enumerate() {
+            *o = table[usize::from(pairs.mean_address(a[ch], b[ch]))];
+        }
+    }
+}
+
+/// The output bytes of eight pixels of one colour (the definition of [`pattern`]).
+#[cfg(test)]
+fn pattern_bytes(rgb: [u8; 3]) -> [u8; 3 * 8] {
+    std::array::from_fn(|i| rgb[i % 3])
+}
+
+/// The output bytes of eight pixels of one colour (a run of one colour repeats
+/// them) as three little-endian words, made by shifts (from bytes, the compiler
+/// keeps them apart and stores them one by one).
+#[inline(always)]
+fn pattern(rgb: [u8; 3]) -> [u64; 3] {
+    const BYTE: u32 = 8;
+    let w = u64::from(rgb[0]) | u64::from(rgb[1]) << BYTE | u64::from(rgb[2]) << (2 * BYTE);
+    // Bytes 0..8: r g b r g b r g; 8..16: b r g b r g b r; 16..24: g b r g b r g b.
+    [
+        w | w << (3 * BYTE) | w << (6 * BYTE),
+        w >> (2 * BYTE) | w << BYTE | w << (4 * BYTE) | w << (7 * BYTE),
+        w >> BYTE | w << (2 * BYTE) | w << (5 * BYTE),
+    ]
+}
+
+/// F2's first pass over a stretch of a row (`row`) and the row below it, into the
+/// line buffer, a run of [`LOG8_RUN`] at a time. A flat run (every word of the run and
+/// of the run below the same) is recorded in `flat_runs` and its one half sum
+/// written to its first pixel only; `flat_mean` keeps the last flat run's word and
+/// half sum, which the next flat run most likely repeats.
+#[inline(always)]
+fn read_out_log8_pass1(
+    line: &mut [Line8],
+    row: &[Word8],
+    below: &[Word8],
+    flat_runs: &mut [bool],
+    flat_mean: &mut (Word8, Line8),
+    pairs: &PairMeans,
+) {
+    let (runs, below_runs) = (row.chunks_exact(LOG8_RUN), below.chunks_exact(LOG8_RUN));
+    let whole = row.len() / LOG8_RUN * LOG8_RUN;
+    for (((l, a), b), flat_run) in line.chunks_exact_mut(LOG8_RUN).zip(runs).zip(below_runs).zip(&mut *flat_runs) {
+        let l: &mut [Line8; LOG8_RUN] = l.try_into().expect("a whole run");
+        let (a, b): (&[Word8; LOG8_RUN], &[Word8; LOG8_RUN]) =
+            (a.try_into().expect("a whole run"), b.try_into().expect("a whole run"));
+        // (Array comparisons of eight words: the compiler compares them in vector
+        // registers; of more, it calls `memcmp`.)
         let first = a[0];
-        let flat = a.iter().zip(b).fold(0, |d, (&a, &b)| d | (a ^ first) | (b ^ first)) == 0;
+        let same = |a: &[Word8], b: &[Word8]| {
+            let eight = |s: &[Word8]| <[Word8; 8]>::try_from(s).expect("eight words");
+            a.chunks_exact(8).zip(b.chunks_exact(8)).all(|(a, b)| eight(a) == eight(b))
+        };
+        let flat = same(a, &[first; LOG8_RUN]) && same(a, b);
         *flat_run = flat;
         if flat {
-            let m = pairs.mean_words(first, first);
-            for l in l {
-                *l = m;
+            if flat_mean.0 != first {
+                *flat_mean = (first, pairs.mean_words(first, first));
             }
+            l[0] = flat_mean.1;
         } else {
-            for ((l, &a), &b) in l.iter_mut().zip(a).zip(b) {
-                *l = pairs.mean_words(a, b);
+            // The table's addresses `a << 8 | b` of every component side by side: the
+            // bytes of the two runs interleaved, then one read per component. (The
+            // spare lanes stay 0.)
+            let (a, b) = (a.map(u32::to_le_bytes), b.map(u32::to_le_bytes));
+            let (a, b) = (a.as_flattened(), b.as_flattened());
+            let mut address = [[0u8; 2]; 4 * LOG8_RUN];
+            for (k, address) in address.iter_mut().enumerate() {
+                *address = [b[k], a[k]];
             }
+            for (i, l) in l.iter_mut().enumerate() {
+                for (ch, l) in l[..3].iter_mut().enumerate() {
+                    *l = pairs.means[usize::from(u16::from_le_bytes(address[4 * i + ch]))];
+                }
+            }
+        }
+    }
+    if whole < row.len() {
+        flat_runs[whole / LOG8_RUN] = false;
+        for ((l, &a), &b) in line[whole..].iter_mut().zip(&row[whole..]).zip(&below[whole..]) {
+            *l = pairs.mean_words(a, b);
+        }
+    }
+}
+
+/// F2's second pass over a run of [`LOG8_RUN`] pixels and the one after it: the
+/// larger operands less `T[0]` and the differences side by side (the compiler
+/// lays them out in vector registers), then two table reads per component.
+#[inline(always)]
+fn read_out_log8_pass2(
+    out: &mut [u8; 3 * LOG8_RUN],
+    run: &[Line8; LOG8_RUN + 1],
+    pairs: &PairMeans,
+    table: &[u8; LOG8_ADDRESSES],
+) {
+    let (a, b) = (run[..LOG8_RUN].as_flattened(), run[1..].as_flattened());
+    let (a, b): (&[i16; 4 * LOG8_RUN], &[i16; 4 * LOG8_RUN]) =
+        (a.try_into().expect("a run of lanes"), b.try_into().expect("a run of lanes"));
+    let (mut hi, mut d) = ([0i16; 4 * LOG8_RUN], [0u16; 4 * LOG8_RUN]);
+    for j in 0..4 * LOG8_RUN {
+        (hi[j], d[j]) = (a[j].max(b[j]).wrapping_sub(pairs.ln2), a[j].max(b[j]).wrapping_sub(a[j].min(b[j])) as u16);
+    }
+    for (i, px) in out.chunks_exact_mut(3).enumerate() {
+        for (ch, o) in px.iter_mut().enumerate() {
+            let j = 4 * i + ch;
+            let t = pairs.softplus[usize::from(d[j])];
+            *o = table[usize::from(PairMeans::address(hi[j], t))];
         }
     }
 }
@@ -1580,12 +1840,6 @@ fn read_out_log8_pass1(line: &mut [Line8], row: &[Word8], below: &[Word8], flat_
 /// F2's three operands of the 8-bit code, R, G, B and a zero: eight bytes, compared
 /// and filled at once.
 type Line8 = [i16; 4];
-
-/// Component `ch` of a [`Line8`].
-#[inline(always)]
-fn lane(l: Line8, ch: usize) -> i16 {
-    l[ch]
-}
 
 /// The float path's gamma table: linear intensity (`GAMMA_TABLE_SIZE` steps over
 /// 0..1) to 8-bit display code, `255 x^(1/gamma)` rounded.
@@ -1675,8 +1929,11 @@ mod tests {
     }
 
     /// The 8-bit code's F2 with zero as [`LOG8_ZERO`] in `i16` gives the general
-    /// half sums: the pair table on every pair of codes, and the second pass on every
-    /// pair of its operands (zero and every quarter code from code 1 to Q1).
+    /// half sums: the pair table on every pair of codes; and the second pass's
+    /// address in the 8-bit gamma table, on every pair of its operands (zero and
+    /// every quarter code from code 1 to Q1), reads the output of the general half
+    /// sum, as does every operand by itself (the flat runs' and the last column's
+    /// pixels).
     #[test]
     fn log8_f2_matches_log_arith() {
         let s = LogScale::get(PAIR_MEANS_BITS);
@@ -1689,18 +1946,61 @@ mod tests {
             }
         }
         let operands = f2_operands(s, 1);
-        for &a in &operands {
-            for &b in &operands {
-                let want = f.mean(a, b);
-                let got = mean_log8(f, narrow(a), narrow(b));
-                assert_eq!(narrow(got), narrow(want), "mean({a}, {b})");
-                // Zero's gamma address is a zero of the padded table.
-                if want == LogFine::ZERO.0 {
-                    assert_eq!(got, i32::from(LOG8_ZERO));
+        for gamma in [2.2, 1.0, 0.45] {
+            let general = s.gamma_table(gamma);
+            let table = log8_gamma_table(&general, s.ln2);
+            let output = |v: i32| general[v.max(0) as usize];
+            for &a in &operands {
+                assert_eq!(table[usize::from(narrow(a) as u16)], output(a), "gamma {gamma}: {a}");
+                for &b in &operands {
+                    let got = table[usize::from(pairs.mean_address(narrow(a), narrow(b)))];
+                    assert_eq!(got, output(f.mean(a, b)), "gamma {gamma}: mean({a}, {b})");
                 }
             }
         }
+        // The second pass's table is the padded one at every difference.
+        for d in 0..LOG8_ADDRESSES {
+            assert_eq!(i32::from(pairs.softplus[d]), f.softplus(d as i32), "T[{d}]");
+        }
         assert!(LogScale::get(PAIR_MEANS_BITS + 1).pair_means.is_none());
+    }
+
+    /// The 8-bit encoder over every `f32` gives the scale's ROM (itself tested against
+    /// its f64 definition): on every bucket's first, second and last patterns and on
+    /// both sides of every threshold, on a sample of all patterns, and on the special
+    /// values.
+    #[test]
+    fn encoder8_matches_encode() {
+        let s = LogScale::get(PAIR_MEANS_BITS);
+        let e = s.encoder8.as_ref().expect("the 8-bit encoder").tables();
+        let check = |bits: u32| {
+            let c = f32::from_bits(bits);
+            assert_eq!(u16::from(e.encode(c)), s.encode(c), "encode({c:e}) of bits {bits:#x}");
+        };
+        for bucket in 0..=u32::MAX >> ENCODER8_SHIFT {
+            let lo = bucket << ENCODER8_SHIFT;
+            [lo, lo + 1, lo | ((1 << ENCODER8_SHIFT) - 1)].into_iter().for_each(check);
+        }
+        for &(up_from, _) in &s.encoder {
+            [up_from.wrapping_sub(1), up_from, up_from.wrapping_add(1)].into_iter().for_each(check);
+        }
+        (0..=u32::MAX).step_by(251).for_each(check);
+        let specials = [0.0, -0.0, 1.0, -1.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN, -f32::NAN, f32::MAX];
+        for c in specials.into_iter().chain([f32::MIN_POSITIVE, 1e-40, 0.999_999_94, 1.000_000_1]) {
+            check(c.to_bits());
+        }
+        check(0x7FC0_0001);
+        check(0xFFFF_FFFF);
+    }
+
+    /// A flat run's output words are its bytes.
+    #[test]
+    fn pattern_words_are_the_bytes() {
+        for rgb in [[0, 0, 0], [1, 2, 3], [255, 0, 128], [255, 255, 255], [7, 200, 91]] {
+            let words = pattern(rgb);
+            let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+            assert_eq!(bytes, pattern_bytes(rgb), "{rgb:?}");
+        }
     }
 
     impl VideoBuffer {
@@ -1788,7 +2088,18 @@ mod tests {
         let modes = (VB_BITS_MIN..=VB_BITS_MAX).flat_map(|bits| [VbMode::Log { bits }, VbMode::Linear { bits }]);
         for mode in modes {
             // Short runs, and long ones (whole F2 runs equal to their neighbours).
-            for (w, h, change) in [(1, 1, 6), (1, 5, 6), (7, 1, 6), (37, 23, 6), (37, 23, 90), (64, 9, 400)] {
+            let sizes = [
+                (1, 1, 6),
+                (1, 5, 6),
+                (7, 1, 6),
+                (37, 23, 6),
+                (37, 23, 90),
+                (64, 9, 400),
+                (48, 7, 60),
+                (80, 5, 2000),
+                (9, 3, 400),
+            ];
+            for (w, h, change) in sizes {
                 let mut vb = VideoBuffer::new(w, h, mode);
                 let one = match mode {
                     VbMode::Log { bits } | VbMode::Linear { bits } => ((1u32 << bits) - 1) as u16,
@@ -1876,12 +2187,19 @@ mod tests {
             let mut expect = vec![[0u16; 3]; 64];
             for _ in 0..4000 {
                 let (px, py) = ((rng.next() % 2) as u32 * 4, (rng.next() % 2) as u32 * 4);
-                let sets: [u16; 16] = std::array::from_fn(|_| match rng.next() % 4 {
+                let mut sets: [u16; 16] = std::array::from_fn(|_| match rng.next() % 4 {
                     0 => 0,
                     1 => 0xFFFF,
                     _ => rng.next() as u16,
                 });
-                let first = rng.next() as u16;
+                let mut first = rng.next() as u16;
+                // Rows of whole first fragments (a polygon's inside), often.
+                for row in 0..4 {
+                    if rng.next() % 3 == 0 {
+                        sets[4 * row..4 * row + 4].fill(FULL);
+                        first |= ROW_BITS << (4 * row);
+                    }
+                }
                 let colors: [Vec3; 16] = std::array::from_fn(|_| {
                     Vec3::from_array(std::array::from_fn(|_| match rng.next() % 8 {
                         0 => 0.0,
