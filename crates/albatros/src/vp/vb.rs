@@ -1870,7 +1870,7 @@ mod tests {
         /// A code, zero about one time in eight.
         fn code(&mut self, one: u16) -> u16 {
             let r = self.next();
-            if r % 8 == 0 {
+            if r.is_multiple_of(8) {
                 0
             } else {
                 (r >> 8) as u16 % one + 1
@@ -2162,7 +2162,7 @@ mod tests {
                     _ => (rng.next() % 10_000) as f32 / 10_000.0,
                 }));
                 // Whole cells' first fragments too (the cells wholly on the screen).
-                let whole = px <= 4 && py == 0 && rng.next() % 4 == 0;
+                let whole = px <= 4 && py == 0 && rng.next().is_multiple_of(4);
                 let (sets, first) = if whole { ([FULL; 16], FULL) } else { (sets, rng.next() as u16) };
                 let vis = Visible { px, py, sets, first, covered: false };
                 a.accumulate(&vis, &[color; 16]);
@@ -2195,7 +2195,7 @@ mod tests {
                 let mut first = rng.next() as u16;
                 // Rows of whole first fragments (a polygon's inside), often.
                 for row in 0..4 {
-                    if rng.next() % 3 == 0 {
+                    if rng.next().is_multiple_of(3) {
                         sets[4 * row..4 * row + 4].fill(FULL);
                         first |= ROW_BITS << (4 * row);
                     }

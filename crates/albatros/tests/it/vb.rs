@@ -439,7 +439,7 @@ fn vb_copy_from_takes_owned_pixels() {
         let mut vp = vp_for(&frame, mode);
         vp.render_frame(&frame);
         let mut gathered = VideoBuffer::new(frame.width, frame.height, mode);
-        let owns = |x: u32, y: u32| (x + 2 * y) % 3 == 0;
+        let owns = |x: u32, y: u32| (x + 2 * y).is_multiple_of(3);
         gathered.copy_from(&vp.vb, owns);
         for y in 0..frame.height {
             for x in 0..frame.width {
