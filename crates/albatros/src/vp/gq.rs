@@ -191,6 +191,19 @@ impl MaskMemory {
         self.bits[z >> 6] |= 1 << (z & 63);
     }
 
+    /// Whether the cells `(cx & !7) + i` of row `cy`, `i` in `0..8`, are covered: bit
+    /// `i`. The 8 x 8 cells of an aligned block are one word in Z order (cell `(i, j)`
+    /// of the block at bit `morton(i, j)`), so a row of the block is the bits at
+    /// `morton(i, 0) = 0, 1, 4, 5, 16, 17, 20, 21` above `morton(0, j)`, gathered by
+    /// four shifts. (Levels of fewer than 64 cells have one word, the cells beyond the
+    /// square reading 0.)
+    #[inline]
+    pub fn block_row(&self, cx: usize, cy: usize) -> u8 {
+        let word = self.bits[morton((cx >> 3) as u32, (cy >> 3) as u32)];
+        let t = word >> morton(0, (cy & 7) as u32);
+        (t & 0x3 | t >> 2 & 0xC | t >> 12 & 0x30 | t >> 14 & 0xC0) as u8
+    }
+
     /// The mask bits of the four children of the parent cell `z` (of the level
     /// above), child `c` at bit `c`.
     #[inline]
@@ -316,6 +329,10 @@ pub struct CellProcessors {
     /// `lists[level + 1][child]`, filled in one pass over the cell's edges; the
     /// starting cell's list is `lists[level][0]`.
     lists: Vec<[Vec<ActiveEdge>; 4]>,
+    /// Per level, the cells an opaque polygon covers wholly inside, queued by
+    /// [`Self::descend_filling`] under Greene's rule for [`Self::mark_covered_cells`]
+    /// (Z-order indices).
+    inside: Vec<Vec<usize>>,
 }
 
 /// A level-L cell handed to the SPPs, with the edges that cross it.
@@ -370,6 +387,7 @@ impl CellProcessors {
             memories,
             cleared_share: Share::WHOLE,
             lists: vec![Default::default(); root_level as usize + 1],
+            inside: vec![Vec::new(); root_level as usize + 1],
         }
     }
 
@@ -435,9 +453,17 @@ impl CellProcessors {
     /// would climb through those marks again and again (7 levels on average on
     /// `rombm`, against 1.33 parents per cell here). Cells in ascending Z order (the
     /// descent's own order) have their parents' repeats side by side, checked once.
+    ///
+    /// The cells [`Self::descend_filling`] queued on their own levels join the cells
+    /// climbing through those levels (their subtrees are marked already).
     pub fn mark_covered_cells(&mut self, cells: &mut Vec<usize>) {
         let mut k = self.root_level;
-        while k >= 1 && self.masks.has(k) && !cells.is_empty() {
+        while k >= 1 && self.masks.has(k) {
+            cells.append(&mut self.inside[k as usize]);
+            if cells.is_empty() {
+                k -= 1;
+                continue;
+            }
             let m = &mut self.memories[k as usize];
             for &z in cells.iter() {
                 m.set_z(z);
@@ -455,6 +481,11 @@ impl CellProcessors {
             k -= 1;
         }
         cells.clear();
+        // Queued on levels the climb does not reach (a level out of use below them):
+        // P1's marks in their subtrees are all they get, as when climbing cell by cell.
+        for queued in &mut self.inside {
+            queued.clear();
+        }
     }
 
     /// The mask memory of level `k` (for pictures and tests).
@@ -483,6 +514,30 @@ impl CellProcessors {
     /// Runs the descent of one polygon from its bounding cell, calling `spp` for every
     /// level-L cell that is inside or crossed and not masked. `STATS` selects counting.
     pub fn descend<const STATS: bool>(
+        &mut self,
+        poly: &GqPolygon,
+        counters: &mut Counters,
+        spp: &mut impl FnMut(Fragment),
+    ) {
+        self.descend_inner::<STATS, false>(poly, counters, spp);
+    }
+
+    /// [`Self::descend`] with counting off, with two shortcuts for the cells wholly
+    /// inside the polygon (IN for every edge, so no edge crosses them and their
+    /// fragments come with no active edge): their subtrees are walked with the mask
+    /// memories alone (the same marks and the same last-level cells as the descent),
+    /// and under Greene's rule (`hierarchical`) an opaque polygon's inside cells are
+    /// queued for [`Self::mark_covered_cells`] on their own level. Every last-level
+    /// cell under them ends wholly covered (an opaque polygon takes every open
+    /// subpixel of a cell with no edge), so the caller need not report those cells
+    /// one by one: it reports only fragments with active edges, and those of
+    /// transparent polygons. The counters are not touched (counting runs the
+    /// machine's every step: [`Self::descend`]).
+    pub fn descend_filling(&mut self, poly: &GqPolygon, counters: &mut Counters, spp: &mut impl FnMut(Fragment)) {
+        self.descend_inner::<false, true>(poly, counters, spp);
+    }
+
+    fn descend_inner<const STATS: bool, const FILL: bool>(
         &mut self,
         poly: &GqPolygon,
         counters: &mut Counters,
@@ -525,13 +580,13 @@ impl CellProcessors {
             spp(Fragment { px: start.x * 4, py: start.y * 4, active: &self.lists[start.level as usize][0] });
             return;
         }
-        self.split::<STATS>(start, start_z, 0, poly, counters, spp);
+        self.split::<STATS, FILL>(start, start_z, 0, poly, counters, spp);
     }
 
     /// One GQ step: splits `cell` (Z-order index `z`, its active edges in
     /// `lists[cell.level][list]`) into four children and descends into those inside
     /// or crossed.
-    fn split<const STATS: bool>(
+    fn split<const STATS: bool, const FILL: bool>(
         &mut self,
         cell: Cell,
         z: usize,
@@ -597,6 +652,18 @@ impl CellProcessors {
             let c = todo.trailing_zeros();
             todo &= todo - 1;
             let child_cell = Cell { level: child_level, x: cell.x * 2 + (c & 1), y: cell.y * 2 + (c >> 1) };
+            if FILL && ci >> c & 1 == 1 {
+                // Wholly inside: no edge to carry further down.
+                if self.hierarchical && poly.opaque {
+                    self.inside[child_level as usize].push(4 * z + c as usize);
+                }
+                if child_level == self.root_level {
+                    spp(Fragment { px: child_cell.x * 4, py: child_cell.y * 4, active: &[] });
+                } else {
+                    self.fill(child_cell, 4 * z + c as usize, poly.opaque, spp);
+                }
+                continue;
+            }
             if child_level == self.root_level {
                 spp(Fragment {
                     px: child_cell.x * 4,
@@ -604,7 +671,30 @@ impl CellProcessors {
                     active: &self.lists[child_level as usize][c as usize],
                 });
             } else {
-                self.split::<STATS>(child_cell, 4 * z + c as usize, c as usize, poly, counters, spp);
+                self.split::<STATS, FILL>(child_cell, 4 * z + c as usize, c as usize, poly, counters, spp);
+            }
+        }
+    }
+
+    /// [`Self::split`] of a cell wholly inside the polygon (Z-order index `z`): its
+    /// children are all IN, so only the mask memory decides (the marks and the cells
+    /// of `split` with no active edge), down to the last level's cells, which go to
+    /// `spp` with no active edge.
+    fn fill(&mut self, cell: Cell, z: usize, opaque: bool, spp: &mut impl FnMut(Fragment)) {
+        let child_level = cell.level + 1;
+        let todo = !self.memories[child_level as usize].children(z) & 0xF;
+        if opaque && self.masks.has(child_level) {
+            self.memories[child_level as usize].set_children(z, todo);
+        }
+        let mut rest = todo;
+        while rest != 0 {
+            let c = rest.trailing_zeros();
+            rest &= rest - 1;
+            let (x, y) = (cell.x * 2 + (c & 1), cell.y * 2 + (c >> 1));
+            if child_level == self.root_level {
+                spp(Fragment { px: x * 4, py: y * 4, active: &[] });
+            } else {
+                self.fill(Cell { level: child_level, x, y }, 4 * z + c as usize, opaque, spp);
             }
         }
     }
@@ -713,6 +803,38 @@ mod tests {
         assert!(!m.get(3, 5) && !m.get(1, 0) && m.get(11, 0) && m.get(0, 7));
         // Children (10, 6), (11, 6), (10, 7), (11, 7): only the first is on the screen.
         assert_eq!(m.children(morton(5, 3)), 0b1110);
+    }
+
+    /// A row of an 8 x 8 block of cells is the cells' bits one by one: random
+    /// memories of every size up to 64 x 64 cells, screens smaller than the square.
+    #[test]
+    fn block_row_is_the_row_of_cells() {
+        let mut state = 0x0123_4567_89AB_CDEF_u64;
+        for level in 0..=6u32 {
+            let side = 1usize << level;
+            for _ in 0..20 {
+                let mut m = MaskMemory::new(level, side - side / 3, side - side / 5);
+                for w in &mut m.bits {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    *w |= state;
+                }
+                if side * side < 64 {
+                    m.bits[0] &= (1u64 << (side * side)) - 1;
+                }
+                for cy in 0..side {
+                    for cx in 0..side {
+                        let row = m.block_row(cx, cy);
+                        for i in 0..8 {
+                            let x = (cx & !7) + i;
+                            let want = x < side && m.get(x, cy);
+                            assert_eq!(row >> i & 1 == 1, want, "level {level}, cell ({x}, {cy})");
+                        }
+                    }
+                }
+            }
+        }
     }
 
     /// [`edge_code`]'s comparisons are the ROM's answer, as `split` formed it before
