@@ -333,6 +333,8 @@ pub struct CellProcessors {
     /// [`Self::descend_filling`] under Greene's rule for [`Self::mark_covered_cells`]
     /// (Z-order indices).
     inside: Vec<Vec<usize>>,
+    /// Bit `k`: `inside[k]` is not empty.
+    queued: u32,
 }
 
 /// A level-L cell handed to the SPPs, with the edges that cross it.
@@ -388,6 +390,7 @@ impl CellProcessors {
             cleared_share: Share::WHOLE,
             lists: vec![Default::default(); root_level as usize + 1],
             inside: vec![Vec::new(); root_level as usize + 1],
+            queued: 0,
         }
     }
 
@@ -458,7 +461,9 @@ impl CellProcessors {
     /// climbing through those levels (their subtrees are marked already).
     pub fn mark_covered_cells(&mut self, cells: &mut Vec<usize>) {
         let mut k = self.root_level;
-        while k >= 1 && self.masks.has(k) {
+        // Levels `k` and above with queued cells: `queued & below(k)`.
+        let below = |k: u32| (2u32 << k).wrapping_sub(1);
+        while k >= 1 && self.masks.has(k) && (!cells.is_empty() || self.queued & below(k) != 0) {
             cells.append(&mut self.inside[k as usize]);
             if cells.is_empty() {
                 k -= 1;
@@ -483,8 +488,10 @@ impl CellProcessors {
         cells.clear();
         // Queued on levels the climb does not reach (a level out of use below them):
         // P1's marks in their subtrees are all they get, as when climbing cell by cell.
-        for queued in &mut self.inside {
-            queued.clear();
+        while self.queued != 0 {
+            let k = self.queued.trailing_zeros();
+            self.queued &= self.queued - 1;
+            self.inside[k as usize].clear();
         }
     }
 
@@ -601,6 +608,14 @@ impl CellProcessors {
 
         // Edge codes: CI_i, CRI_i per edge, ANDed (P1 eq. 2); each edge goes on the
         // lists of the children it crosses, with the V of the child's stretch.
+        // The mask memory of the children's level, read first: a masked child needs
+        // no list (and with counting off, four masked children no edge codes).
+        // Bits are only ever set on levels in use; cells wholly off the screen always
+        // read as covered (pre-masked), whatever the mode.
+        let m = self.memories[child_level as usize].children(z);
+        if !STATS && m == 0xF {
+            return;
+        }
         let mut ci_all = 0xFu8;
         let mut cri_all = 0xFu8;
         let (lo, hi) = self.lists.split_at_mut(k + 1);
@@ -613,7 +628,7 @@ impl CellProcessors {
             let code = edge_code(a.v1.0, a.v2.0, half, a.vertical, a.lr);
             ci_all &= code.ci;
             cri_all &= code.cri;
-            let mut crossed = code.cri & !code.ci;
+            let mut crossed = code.cri & !code.ci & !m;
             while crossed != 0 {
                 let c = crossed.trailing_zeros() as usize;
                 crossed &= crossed - 1;
@@ -625,11 +640,7 @@ impl CellProcessors {
                 children[c].push(ActiveEdge { v1: EdgeCoord(v1 - shift), v2: EdgeCoord(v2 - shift), ..*a });
             }
         }
-        // The mask memory of the children's level.
-        // Bits are only ever set on levels in use; cells wholly off the screen always
-        // read as covered (pre-masked), whatever the mode.
         let mem_on = self.masks.has(child_level);
-        let m = self.memories[child_level as usize].children(z);
         let cri = !m & cri_all & 0xF;
         let ci = !m & ci_all & 0xF;
         if STATS {
@@ -656,6 +667,7 @@ impl CellProcessors {
                 // Wholly inside: no edge to carry further down.
                 if self.hierarchical && poly.opaque {
                     self.inside[child_level as usize].push(4 * z + c as usize);
+                    self.queued |= 1 << child_level;
                 }
                 if child_level == self.root_level {
                     spp(Fragment { px: child_cell.x * 4, py: child_cell.y * 4, active: &[] });

@@ -174,7 +174,7 @@ impl VideoProcessor {
     pub fn raster(&mut self, frame: &FrameList) -> u64 {
         let mut visible = 0u64;
         Self::run::<false>(&mut self.gq, &mut self.spp, &mut self.counters, frame, &mut |_, vis| {
-            visible += u64::from(vis.sets.iter().any(|&s| s != 0));
+            visible += u64::from(vis.any());
         });
         visible
     }
@@ -274,7 +274,7 @@ impl VideoProcessor {
                 if hierarchical && vis.covered && !(inside && opaque) {
                     covered_cells.push(gq::morton(vis.px / spp::CELL_SIDE, vis.py / spp::CELL_SIDE));
                 }
-                if vis.sets.iter().any(|&s| s != 0) {
+                if vis.any() {
                     sink(Some(index), &vis);
                 }
             };
@@ -316,7 +316,7 @@ impl VideoProcessor {
                             background_subpixels += vis.sets.iter().map(|s| u64::from(s.count_ones())).sum::<u64>();
                             background_firsts += u64::from(vis.first.count_ones());
                         }
-                        if vis.sets.iter().any(|&s| s != 0) {
+                        if vis.any() {
                             sink(None, &vis);
                         }
                     }

@@ -42,6 +42,16 @@ pub struct Visible {
     pub covered: bool,
 }
 
+impl Visible {
+    /// Whether any subpixel is visible. An OR over the 16 sets rather than a search
+    /// that stops at the first: no branch per pixel, and it vectorises (the VP asks
+    /// this of every fragment, most of them wholly visible or wholly hidden).
+    #[inline]
+    pub fn any(&self) -> bool {
+        self.sets.iter().fold(0, |a, &s| a | s) != 0
+    }
+}
+
 /// The 16 SPPs and the subpixel mask memory.
 #[derive(Clone, Debug)]
 pub struct SubpixelProcessors {
