@@ -6,7 +6,7 @@
 //!   the screen, level `L` cells are 4 x 4 pixels and go to the SPPs.
 //! - For each active (crossing) edge the GQ forms `(V1 + V2) / 2` by one addition and a
 //!   shift, finds the edge's CI/CRI codes (those of the [`GqRom`](super::tables::GqRom) with the high bits
-//!   of V1, (V1+V2)/2, V2, read by comparisons: [`edge_code`]), and combines them by
+//!   of V1, (V1+V2)/2, V2, read by comparisons: `edge_code`), and combines them by
 //!   P1 eq. (2): `CRI = !M & AND CRI_i`, `CI = !M & AND CI_i`, `CR = CRI & !CI`,
 //!   `M |= CI`.
 //! - Children's V1, V2 are the parent's V1 and the midpoint, or the midpoint and V2,
@@ -337,16 +337,26 @@ pub struct CellProcessors {
     queued: u32,
 }
 
-/// A level-L cell handed to the SPPs, with the edges that cross it.
+/// A level-L cell handed to the SPPs, with the edges that cross it; or, from
+/// [`CellProcessors::descend_filling`] only, up to four level-L cells wholly inside
+/// the polygon, siblings in a cell of level L - 1 (`cells`).
 pub struct Fragment<'a> {
-    /// Left pixel of the 4x4 cell.
+    /// Left pixel of the 4x4 cell (of the 8x8 parent when `cells` is not [`ONE_CELL`]).
     pub px: u32,
     /// Top pixel.
     pub py: u32,
     /// Edges crossing the cell, with V at its borders relative to the cell's left
     /// pixel column (vertical edges) or top pixel row (horizontal ones).
     pub active: &'a [ActiveEdge],
+    /// The cells: bit `c = dx + 2 dy` for the cell at pixel `(px + 4 dx, py + 4 dy)`.
+    /// [`ONE_CELL`] (the cell at `(px, py)`) for every fragment with active edges and
+    /// every fragment of [`CellProcessors::descend`]; a fragment of several cells
+    /// (siblings wholly inside, no active edge) saves the sink a call per cell.
+    pub cells: u8,
 }
+
+/// [`Fragment::cells`] of a fragment of the one cell at its `(px, py)`.
+pub const ONE_CELL: u8 = 1;
 
 /// The polygon the GQs are working on.
 pub struct GqPolygon<'a> {
@@ -584,7 +594,12 @@ impl CellProcessors {
             list.push(ActiveEdge::at_cell(i as u32, e, x0, y0, side));
         }
         if start.level == self.root_level {
-            spp(Fragment { px: start.x * 4, py: start.y * 4, active: &self.lists[start.level as usize][0] });
+            spp(Fragment {
+                px: start.x * 4,
+                py: start.y * 4,
+                active: &self.lists[start.level as usize][0],
+                cells: ONE_CELL,
+            });
             return;
         }
         self.split::<STATS, FILL>(start, start_z, 0, poly, counters, spp);
@@ -670,7 +685,8 @@ impl CellProcessors {
                     self.queued |= 1 << child_level;
                 }
                 if child_level == self.root_level {
-                    spp(Fragment { px: child_cell.x * 4, py: child_cell.y * 4, active: &[] });
+                    // In the descent's order, cell by cell (this cell of the parent).
+                    spp(Fragment { px: cell.x * 8, py: cell.y * 8, active: &[], cells: 1 << c });
                 } else {
                     self.fill(child_cell, 4 * z + c as usize, poly.opaque, spp);
                 }
@@ -681,6 +697,7 @@ impl CellProcessors {
                     px: child_cell.x * 4,
                     py: child_cell.y * 4,
                     active: &self.lists[child_level as usize][c as usize],
+                    cells: ONE_CELL,
                 });
             } else {
                 self.split::<STATS, FILL>(child_cell, 4 * z + c as usize, c as usize, poly, counters, spp);
@@ -691,23 +708,26 @@ impl CellProcessors {
     /// [`Self::split`] of a cell wholly inside the polygon (Z-order index `z`): its
     /// children are all IN, so only the mask memory decides (the marks and the cells
     /// of `split` with no active edge), down to the last level's cells, which go to
-    /// `spp` with no active edge.
+    /// `spp` with no active edge, the open children of a cell of level L - 1 in one
+    /// fragment.
     fn fill(&mut self, cell: Cell, z: usize, opaque: bool, spp: &mut impl FnMut(Fragment)) {
         let child_level = cell.level + 1;
         let todo = !self.memories[child_level as usize].children(z) & 0xF;
         if opaque && self.masks.has(child_level) {
             self.memories[child_level as usize].set_children(z, todo);
         }
+        if child_level == self.root_level {
+            if todo != 0 {
+                spp(Fragment { px: cell.x * 8, py: cell.y * 8, active: &[], cells: todo });
+            }
+            return;
+        }
         let mut rest = todo;
         while rest != 0 {
             let c = rest.trailing_zeros();
             rest &= rest - 1;
             let (x, y) = (cell.x * 2 + (c & 1), cell.y * 2 + (c >> 1));
-            if child_level == self.root_level {
-                spp(Fragment { px: x * 4, py: y * 4, active: &[] });
-            } else {
-                self.fill(Cell { level: child_level, x, y }, 4 * z + c as usize, opaque, spp);
-            }
+            self.fill(Cell { level: child_level, x, y }, 4 * z + c as usize, opaque, spp);
         }
     }
 }

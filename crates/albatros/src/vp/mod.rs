@@ -262,16 +262,28 @@ impl VideoProcessor {
             let opaque = poly.transparency == 0;
             let gp = GqPolygon { edges, opaque, bbox };
             let mut fragment = |frag: gq::Fragment| {
-                // With counting off, a cell no edge crosses (wholly inside) needs no
-                // look-ups, and an opaque polygon's are marked covered by the GQ
-                // ([`CellProcessors::descend_filling`]).
-                let inside = !STATS && frag.active.is_empty();
-                let vis = if inside {
-                    spp.inside(frag.px, frag.py, poly.transparency)
-                } else {
-                    spp.process::<STATS>(&frag, edges, poly.transparency, &mut inner)
-                };
-                if hierarchical && vis.covered && !(inside && opaque) {
+                if !STATS && frag.active.is_empty() {
+                    // With counting off, cells no edge crosses (wholly inside, up to
+                    // four siblings at once) need no look-ups, and an opaque
+                    // polygon's are marked covered by the GQ
+                    // ([`CellProcessors::descend_filling`]).
+                    let mut cells = frag.cells;
+                    while cells != 0 {
+                        let c = cells.trailing_zeros();
+                        cells &= cells - 1;
+                        let (px, py) = (frag.px + spp::CELL_SIDE * (c & 1), frag.py + spp::CELL_SIDE * (c >> 1));
+                        let vis = spp.inside(px, py, poly.transparency);
+                        if hierarchical && !opaque && vis.covered {
+                            covered_cells.push(gq::morton(px / spp::CELL_SIDE, py / spp::CELL_SIDE));
+                        }
+                        if vis.any() {
+                            sink(Some(index), &vis);
+                        }
+                    }
+                    return;
+                }
+                let vis = spp.process::<STATS>(&frag, edges, poly.transparency, &mut inner);
+                if hierarchical && vis.covered {
                     covered_cells.push(gq::morton(vis.px / spp::CELL_SIDE, vis.py / spp::CELL_SIDE));
                 }
                 if vis.any() {

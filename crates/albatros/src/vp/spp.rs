@@ -4,7 +4,7 @@
 //! Input: a level-L cell from the last GQ with the edges that cross it. For every
 //! pixel and edge the SPP forms the edge's V at the pixel's two borders relative to
 //! the pixel, rounds them to half a subpixel, and looks the 16-bit subpixel set up in
-//! the [`SppTable`]; the AND over edges is the fragment's code. Against the subpixel
+//! the [`SppTable`](super::tables::SppTable); the AND over edges is the fragment's code. Against the subpixel
 //! mask memory (256 bits per cell, `[u16; 16]`):
 //! `visible = fragment & thin(t) & !mask; mask |= visible; area = popcount / 16`,
 //! and the first-write flag marks pixels that had no subpixel covered before.
@@ -787,7 +787,7 @@ mod tests {
                 .enumerate()
                 .map(|(i, e)| ActiveEdge::at_cell(i as u32, e, i64::from(px), i64::from(py), 4))
                 .collect();
-            let frag = Fragment { px, py, active: &active };
+            let frag = Fragment { px, py, active: &active, cells: super::super::gq::ONE_CELL };
             let want = fragment_code_plain(&spp, &frag, &edges);
             let got = spp.fragment_code::<false>(&frag, &edges, &mut Counters::new(level));
             assert_eq!(got, want, "case {k}: mode {mode:?}, cell ({px}, {py}), edges {edges:?}");
@@ -862,7 +862,7 @@ mod tests {
             a.masks[cell] = if k % 7 == 0 { [0; 16] } else { mask };
             let mut b = a.clone();
             let t = if k % 3 == 0 { 0 } else { next(64) as u8 };
-            let frag = Fragment { px: 4 * cx, py: 4 * cy, active: &[] };
+            let frag = Fragment { px: 4 * cx, py: 4 * cy, active: &[], cells: super::super::gq::ONE_CELL };
             let want = a.process::<false>(&frag, &[], t, &mut Counters::new(3));
             let got = b.inside(4 * cx, 4 * cy, t);
             assert_eq!(got, want, "case {k}");

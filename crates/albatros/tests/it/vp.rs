@@ -539,7 +539,15 @@ fn fragments_of(frame: &FrameList, descent: Descent) -> Vec<Vec<(u32, u32, [u16;
             if bbox[0] < bbox[1] && bbox[2] < bbox[3] {
                 let gp = GqPolygon { edges, opaque: false, bbox };
                 let mut sink = |frag: albatros::vp::gq::Fragment| {
-                    out.push((frag.px, frag.py, spp.fragment_code::<false>(&frag, edges, &mut scratch)));
+                    // A fragment of several cells, one by one.
+                    let mut cells = frag.cells;
+                    while cells != 0 {
+                        let c = cells.trailing_zeros();
+                        cells &= cells - 1;
+                        let (px, py) = (frag.px + 4 * (c & 1), frag.py + 4 * (c >> 1));
+                        let one = albatros::vp::gq::Fragment { px, py, cells: albatros::vp::gq::ONE_CELL, ..frag };
+                        out.push((px, py, spp.fragment_code::<false>(&one, edges, &mut scratch)));
+                    }
                 };
                 match descent {
                     Descent::Counting => gq.descend::<true>(&gp, &mut counters, &mut sink),
