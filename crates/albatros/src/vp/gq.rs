@@ -6,7 +6,7 @@
 //!   the screen, level `L` cells are 4 x 4 pixels and go to the SPPs.
 //! - For each active (crossing) edge the GQ forms `(V1 + V2) / 2` by one addition and a
 //!   shift, finds the edge's CI/CRI codes (those of the [`GqRom`](super::tables::GqRom) with the high bits
-//!   of V1, (V1+V2)/2, V2, read by comparisons: [`edge_code`]), and combines them by
+//!   of V1, (V1+V2)/2, V2, read by comparisons: `edge_code`), and combines them by
 //!   P1 eq. (2): `CRI = !M & AND CRI_i`, `CI = !M & AND CI_i`, `CR = CRI & !CI`,
 //!   `M |= CI`.
 //! - Children's V1, V2 are the parent's V1 and the midpoint, or the midpoint and V2,
@@ -191,6 +191,19 @@ impl MaskMemory {
         self.bits[z >> 6] |= 1 << (z & 63);
     }
 
+    /// Whether the cells `(cx & !7) + i` of row `cy`, `i` in `0..8`, are covered: bit
+    /// `i`. The 8 x 8 cells of an aligned block are one word in Z order (cell `(i, j)`
+    /// of the block at bit `morton(i, j)`), so a row of the block is the bits at
+    /// `morton(i, 0) = 0, 1, 4, 5, 16, 17, 20, 21` above `morton(0, j)`, gathered by
+    /// four shifts. (Levels of fewer than 64 cells have one word, the cells beyond the
+    /// square reading 0.)
+    #[inline]
+    pub fn block_row(&self, cx: usize, cy: usize) -> u8 {
+        let word = self.bits[morton((cx >> 3) as u32, (cy >> 3) as u32)];
+        let t = word >> morton(0, (cy & 7) as u32);
+        (t & 0x3 | t >> 2 & 0xC | t >> 12 & 0x30 | t >> 14 & 0xC0) as u8
+    }
+
     /// The mask bits of the four children of the parent cell `z` (of the level
     /// above), child `c` at bit `c`.
     #[inline]
@@ -316,18 +329,34 @@ pub struct CellProcessors {
     /// `lists[level + 1][child]`, filled in one pass over the cell's edges; the
     /// starting cell's list is `lists[level][0]`.
     lists: Vec<[Vec<ActiveEdge>; 4]>,
+    /// Per level, the cells an opaque polygon covers wholly inside, queued by
+    /// [`Self::descend_filling`] under Greene's rule for [`Self::mark_covered_cells`]
+    /// (Z-order indices).
+    inside: Vec<Vec<usize>>,
+    /// Bit `k`: `inside[k]` is not empty.
+    queued: u32,
 }
 
-/// A level-L cell handed to the SPPs, with the edges that cross it.
+/// A level-L cell handed to the SPPs, with the edges that cross it; or, from
+/// [`CellProcessors::descend_filling`] only, up to four level-L cells wholly inside
+/// the polygon, siblings in a cell of level L - 1 (`cells`).
 pub struct Fragment<'a> {
-    /// Left pixel of the 4x4 cell.
+    /// Left pixel of the 4x4 cell (of the 8x8 parent when `cells` is not [`ONE_CELL`]).
     pub px: u32,
     /// Top pixel.
     pub py: u32,
     /// Edges crossing the cell, with V at its borders relative to the cell's left
     /// pixel column (vertical edges) or top pixel row (horizontal ones).
     pub active: &'a [ActiveEdge],
+    /// The cells: bit `c = dx + 2 dy` for the cell at pixel `(px + 4 dx, py + 4 dy)`.
+    /// [`ONE_CELL`] (the cell at `(px, py)`) for every fragment with active edges and
+    /// every fragment of [`CellProcessors::descend`]; a fragment of several cells
+    /// (siblings wholly inside, no active edge) saves the sink a call per cell.
+    pub cells: u8,
 }
+
+/// [`Fragment::cells`] of a fragment of the one cell at its `(px, py)`.
+pub const ONE_CELL: u8 = 1;
 
 /// The polygon the GQs are working on.
 pub struct GqPolygon<'a> {
@@ -370,6 +399,8 @@ impl CellProcessors {
             memories,
             cleared_share: Share::WHOLE,
             lists: vec![Default::default(); root_level as usize + 1],
+            inside: vec![Vec::new(); root_level as usize + 1],
+            queued: 0,
         }
     }
 
@@ -435,9 +466,19 @@ impl CellProcessors {
     /// would climb through those marks again and again (7 levels on average on
     /// `rombm`, against 1.33 parents per cell here). Cells in ascending Z order (the
     /// descent's own order) have their parents' repeats side by side, checked once.
+    ///
+    /// The cells [`Self::descend_filling`] queued on their own levels join the cells
+    /// climbing through those levels (their subtrees are marked already).
     pub fn mark_covered_cells(&mut self, cells: &mut Vec<usize>) {
         let mut k = self.root_level;
-        while k >= 1 && self.masks.has(k) && !cells.is_empty() {
+        // Levels `k` and above with queued cells: `queued & below(k)`.
+        let below = |k: u32| (2u32 << k).wrapping_sub(1);
+        while k >= 1 && self.masks.has(k) && (!cells.is_empty() || self.queued & below(k) != 0) {
+            cells.append(&mut self.inside[k as usize]);
+            if cells.is_empty() {
+                k -= 1;
+                continue;
+            }
             let m = &mut self.memories[k as usize];
             for &z in cells.iter() {
                 m.set_z(z);
@@ -455,6 +496,13 @@ impl CellProcessors {
             k -= 1;
         }
         cells.clear();
+        // Queued on levels the climb does not reach (a level out of use below them):
+        // P1's marks in their subtrees are all they get, as when climbing cell by cell.
+        while self.queued != 0 {
+            let k = self.queued.trailing_zeros();
+            self.queued &= self.queued - 1;
+            self.inside[k as usize].clear();
+        }
     }
 
     /// The mask memory of level `k` (for pictures and tests).
@@ -483,6 +531,30 @@ impl CellProcessors {
     /// Runs the descent of one polygon from its bounding cell, calling `spp` for every
     /// level-L cell that is inside or crossed and not masked. `STATS` selects counting.
     pub fn descend<const STATS: bool>(
+        &mut self,
+        poly: &GqPolygon,
+        counters: &mut Counters,
+        spp: &mut impl FnMut(Fragment),
+    ) {
+        self.descend_inner::<STATS, false>(poly, counters, spp);
+    }
+
+    /// [`Self::descend`] with counting off, with two shortcuts for the cells wholly
+    /// inside the polygon (IN for every edge, so no edge crosses them and their
+    /// fragments come with no active edge): their subtrees are walked with the mask
+    /// memories alone (the same marks and the same last-level cells as the descent),
+    /// and under Greene's rule (`hierarchical`) an opaque polygon's inside cells are
+    /// queued for [`Self::mark_covered_cells`] on their own level. Every last-level
+    /// cell under them ends wholly covered (an opaque polygon takes every open
+    /// subpixel of a cell with no edge), so the caller need not report those cells
+    /// one by one: it reports only fragments with active edges, and those of
+    /// transparent polygons. The counters are not touched (counting runs the
+    /// machine's every step: [`Self::descend`]).
+    pub fn descend_filling(&mut self, poly: &GqPolygon, counters: &mut Counters, spp: &mut impl FnMut(Fragment)) {
+        self.descend_inner::<false, true>(poly, counters, spp);
+    }
+
+    fn descend_inner<const STATS: bool, const FILL: bool>(
         &mut self,
         poly: &GqPolygon,
         counters: &mut Counters,
@@ -522,16 +594,21 @@ impl CellProcessors {
             list.push(ActiveEdge::at_cell(i as u32, e, x0, y0, side));
         }
         if start.level == self.root_level {
-            spp(Fragment { px: start.x * 4, py: start.y * 4, active: &self.lists[start.level as usize][0] });
+            spp(Fragment {
+                px: start.x * 4,
+                py: start.y * 4,
+                active: &self.lists[start.level as usize][0],
+                cells: ONE_CELL,
+            });
             return;
         }
-        self.split::<STATS>(start, start_z, 0, poly, counters, spp);
+        self.split::<STATS, FILL>(start, start_z, 0, poly, counters, spp);
     }
 
     /// One GQ step: splits `cell` (Z-order index `z`, its active edges in
     /// `lists[cell.level][list]`) into four children and descends into those inside
     /// or crossed.
-    fn split<const STATS: bool>(
+    fn split<const STATS: bool, const FILL: bool>(
         &mut self,
         cell: Cell,
         z: usize,
@@ -546,6 +623,14 @@ impl CellProcessors {
 
         // Edge codes: CI_i, CRI_i per edge, ANDed (P1 eq. 2); each edge goes on the
         // lists of the children it crosses, with the V of the child's stretch.
+        // The mask memory of the children's level, read first: a masked child needs
+        // no list (and with counting off, four masked children no edge codes).
+        // Bits are only ever set on levels in use; cells wholly off the screen always
+        // read as covered (pre-masked), whatever the mode.
+        let m = self.memories[child_level as usize].children(z);
+        if !STATS && m == 0xF {
+            return;
+        }
         let mut ci_all = 0xFu8;
         let mut cri_all = 0xFu8;
         let (lo, hi) = self.lists.split_at_mut(k + 1);
@@ -558,7 +643,7 @@ impl CellProcessors {
             let code = edge_code(a.v1.0, a.v2.0, half, a.vertical, a.lr);
             ci_all &= code.ci;
             cri_all &= code.cri;
-            let mut crossed = code.cri & !code.ci;
+            let mut crossed = code.cri & !code.ci & !m;
             while crossed != 0 {
                 let c = crossed.trailing_zeros() as usize;
                 crossed &= crossed - 1;
@@ -570,11 +655,7 @@ impl CellProcessors {
                 children[c].push(ActiveEdge { v1: EdgeCoord(v1 - shift), v2: EdgeCoord(v2 - shift), ..*a });
             }
         }
-        // The mask memory of the children's level.
-        // Bits are only ever set on levels in use; cells wholly off the screen always
-        // read as covered (pre-masked), whatever the mode.
         let mem_on = self.masks.has(child_level);
-        let m = self.memories[child_level as usize].children(z);
         let cri = !m & cri_all & 0xF;
         let ci = !m & ci_all & 0xF;
         if STATS {
@@ -597,15 +678,56 @@ impl CellProcessors {
             let c = todo.trailing_zeros();
             todo &= todo - 1;
             let child_cell = Cell { level: child_level, x: cell.x * 2 + (c & 1), y: cell.y * 2 + (c >> 1) };
+            if FILL && ci >> c & 1 == 1 {
+                // Wholly inside: no edge to carry further down.
+                if self.hierarchical && poly.opaque {
+                    self.inside[child_level as usize].push(4 * z + c as usize);
+                    self.queued |= 1 << child_level;
+                }
+                if child_level == self.root_level {
+                    // In the descent's order, cell by cell (this cell of the parent).
+                    spp(Fragment { px: cell.x * 8, py: cell.y * 8, active: &[], cells: 1 << c });
+                } else {
+                    self.fill(child_cell, 4 * z + c as usize, poly.opaque, spp);
+                }
+                continue;
+            }
             if child_level == self.root_level {
                 spp(Fragment {
                     px: child_cell.x * 4,
                     py: child_cell.y * 4,
                     active: &self.lists[child_level as usize][c as usize],
+                    cells: ONE_CELL,
                 });
             } else {
-                self.split::<STATS>(child_cell, 4 * z + c as usize, c as usize, poly, counters, spp);
+                self.split::<STATS, FILL>(child_cell, 4 * z + c as usize, c as usize, poly, counters, spp);
             }
+        }
+    }
+
+    /// [`Self::split`] of a cell wholly inside the polygon (Z-order index `z`): its
+    /// children are all IN, so only the mask memory decides (the marks and the cells
+    /// of `split` with no active edge), down to the last level's cells, which go to
+    /// `spp` with no active edge, the open children of a cell of level L - 1 in one
+    /// fragment.
+    fn fill(&mut self, cell: Cell, z: usize, opaque: bool, spp: &mut impl FnMut(Fragment)) {
+        let child_level = cell.level + 1;
+        let todo = !self.memories[child_level as usize].children(z) & 0xF;
+        if opaque && self.masks.has(child_level) {
+            self.memories[child_level as usize].set_children(z, todo);
+        }
+        if child_level == self.root_level {
+            if todo != 0 {
+                spp(Fragment { px: cell.x * 8, py: cell.y * 8, active: &[], cells: todo });
+            }
+            return;
+        }
+        let mut rest = todo;
+        while rest != 0 {
+            let c = rest.trailing_zeros();
+            rest &= rest - 1;
+            let (x, y) = (cell.x * 2 + (c & 1), cell.y * 2 + (c >> 1));
+            self.fill(Cell { level: child_level, x, y }, 4 * z + c as usize, opaque, spp);
         }
     }
 }
@@ -713,6 +835,38 @@ mod tests {
         assert!(!m.get(3, 5) && !m.get(1, 0) && m.get(11, 0) && m.get(0, 7));
         // Children (10, 6), (11, 6), (10, 7), (11, 7): only the first is on the screen.
         assert_eq!(m.children(morton(5, 3)), 0b1110);
+    }
+
+    /// A row of an 8 x 8 block of cells is the cells' bits one by one: random
+    /// memories of every size up to 64 x 64 cells, screens smaller than the square.
+    #[test]
+    fn block_row_is_the_row_of_cells() {
+        let mut state = 0x0123_4567_89AB_CDEF_u64;
+        for level in 0..=6u32 {
+            let side = 1usize << level;
+            for _ in 0..20 {
+                let mut m = MaskMemory::new(level, side - side / 3, side - side / 5);
+                for w in &mut m.bits {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    *w |= state;
+                }
+                if side * side < 64 {
+                    m.bits[0] &= (1u64 << (side * side)) - 1;
+                }
+                for cy in 0..side {
+                    for cx in 0..side {
+                        let row = m.block_row(cx, cy);
+                        for i in 0..8 {
+                            let x = (cx & !7) + i;
+                            let want = x < side && m.get(x, cy);
+                            assert_eq!(row >> i & 1 == 1, want, "level {level}, cell ({x}, {cy})");
+                        }
+                    }
+                }
+            }
+        }
     }
 
     /// [`edge_code`]'s comparisons are the ROM's answer, as `split` formed it before

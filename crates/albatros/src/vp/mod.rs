@@ -174,7 +174,7 @@ impl VideoProcessor {
     pub fn raster(&mut self, frame: &FrameList) -> u64 {
         let mut visible = 0u64;
         Self::run::<false>(&mut self.gq, &mut self.spp, &mut self.counters, frame, &mut |_, vis| {
-            visible += u64::from(vis.sets.iter().any(|&s| s != 0));
+            visible += u64::from(vis.any());
         });
         visible
     }
@@ -259,31 +259,80 @@ impl VideoProcessor {
             if bbox[0] >= bbox[1] || bbox[2] >= bbox[3] {
                 continue;
             }
-            let gp = GqPolygon { edges, opaque: poly.transparency == 0, bbox };
-            gq.descend::<STATS>(&gp, counters, &mut |frag| {
+            let opaque = poly.transparency == 0;
+            let gp = GqPolygon { edges, opaque, bbox };
+            let mut fragment = |frag: gq::Fragment| {
+                if !STATS && frag.active.is_empty() {
+                    // With counting off, cells no edge crosses (wholly inside, up to
+                    // four siblings at once) need no look-ups, and an opaque
+                    // polygon's are marked covered by the GQ
+                    // ([`CellProcessors::descend_filling`]).
+                    let mut cells = frag.cells;
+                    while cells != 0 {
+                        let c = cells.trailing_zeros();
+                        cells &= cells - 1;
+                        let (px, py) = (frag.px + spp::CELL_SIDE * (c & 1), frag.py + spp::CELL_SIDE * (c >> 1));
+                        let vis = spp.inside(px, py, poly.transparency);
+                        if hierarchical && !opaque && vis.covered {
+                            covered_cells.push(gq::morton(px / spp::CELL_SIDE, py / spp::CELL_SIDE));
+                        }
+                        if vis.any() {
+                            sink(Some(index), &vis);
+                        }
+                    }
+                    return;
+                }
                 let vis = spp.process::<STATS>(&frag, edges, poly.transparency, &mut inner);
                 if hierarchical && vis.covered {
                     covered_cells.push(gq::morton(vis.px / spp::CELL_SIDE, vis.py / spp::CELL_SIDE));
                 }
-                if vis.sets.iter().any(|&s| s != 0) {
+                if vis.any() {
                     sink(Some(index), &vis);
                 }
-            });
+            };
+            if STATS {
+                gq.descend::<STATS>(&gp, counters, &mut fragment);
+            } else {
+                gq.descend_filling(&gp, counters, &mut fragment);
+            }
             // Cells this polygon finished covering are marked for the next ones.
             gq.mark_covered_cells(&mut covered_cells);
         }
         // The background: the last fragment of every pixel, over the cells of this
         // VP's share (the others are pre-masked whole: no subpixel of theirs is open).
+        // Cells the last GQ level marks covered (all their subpixels taken: the
+        // marks are sound) get nothing, and only have their masks put back, a run of
+        // them at once; the marks are read a row of an 8 x 8 block at a time.
         let (mut background_subpixels, mut background_firsts) = (0u64, 0u64);
-        for (cy, columns) in share_cells(&spp.share, spp.stride, spp.rows) {
-            for cx in columns {
-                let vis = spp.background(cx, cy);
-                if STATS {
-                    background_subpixels += vis.sets.iter().map(|s| u64::from(s.count_ones())).sum::<u64>();
-                    background_firsts += u64::from(vis.first.count_ones());
-                }
-                if vis.sets.iter().any(|&s| s != 0) {
-                    sink(None, &vis);
+        let marks = gq.memory(gq.root_level);
+        for (cy, runs) in share_cells(&spp.share, spp.stride, spp.rows) {
+            for run in runs {
+                let mut cx = run.start;
+                while cx < run.end {
+                    // This row of the cell's 8 x 8 block, from `cx` on to the run's end.
+                    let end = ((cx | BLOCK_MASK) + 1).min(run.end);
+                    let covered = u32::from(marks.block_row(cx, cy)) >> (cx & BLOCK_MASK);
+                    let n = end - cx;
+                    if covered & ((1 << n) - 1) == (1 << n) - 1 {
+                        spp.background_covered(cy, cx..end);
+                        cx = end;
+                        continue;
+                    }
+                    for (i, x) in (cx..end).enumerate() {
+                        if covered >> i & 1 == 1 {
+                            spp.background_covered(cy, x..x + 1);
+                            continue;
+                        }
+                        let vis = spp.background(x, cy);
+                        if STATS {
+                            background_subpixels += vis.sets.iter().map(|s| u64::from(s.count_ones())).sum::<u64>();
+                            background_firsts += u64::from(vis.first.count_ones());
+                        }
+                        if vis.any() {
+                            sink(None, &vis);
+                        }
+                    }
+                    cx = end;
                 }
             }
         }
@@ -304,14 +353,19 @@ impl VideoProcessor {
     }
 }
 
+/// The last cell of an 8 x 8 block of last-level cells, as a mask of a column: the
+/// blocks the background pass reads the GQ's marks by ([`gq::MaskMemory::block_row`]).
+const BLOCK_MASK: usize = 7;
+
 /// The last-level cells of a share of a `stride x rows`-cell screen, row by row:
-/// `(cy, the columns cx)`. With whole-cell tiles, only the rows and runs of columns of
-/// the share's tiles; with a pixel interleave (tiles under a cell), every cell.
+/// `(cy, runs of columns cx)`. With whole-cell tiles, only the rows and runs of
+/// columns of the share's tiles; with a pixel interleave (tiles under a cell), every
+/// cell.
 fn share_cells(
     share: &gq::Share,
     stride: usize,
     rows: usize,
-) -> impl Iterator<Item = (usize, impl Iterator<Item = usize>)> {
+) -> impl Iterator<Item = (usize, impl Iterator<Item = std::ops::Range<usize>>)> {
     let whole_cells = share.tile >= spp::CELL_SIDE && share.p * share.q > 1;
     // Cells per tile side, and the share's first tile column and row.
     let (side, p, q) = if whole_cells {
@@ -321,8 +375,8 @@ fn share_cells(
     };
     let (i, j) = if whole_cells { (share.i as usize, share.j as usize) } else { (0, 0) };
     (0..rows).filter(move |cy| (cy / side) % q == j).map(move |cy| {
-        let columns = (i * side..stride).step_by(side * p).flat_map(move |x0| x0..(x0 + side).min(stride));
-        (cy, columns)
+        let runs = (i * side..stride).step_by(side * p).map(move |x0| x0..(x0 + side).min(stride));
+        (cy, runs)
     })
 }
 
@@ -356,8 +410,9 @@ mod tests {
             for j in 0..q {
                 for i in 0..p {
                     let share = gq::Share { tile, p, q, i, j };
-                    let got: Vec<(usize, usize)> =
-                        share_cells(&share, stride, rows).flat_map(|(cy, xs)| xs.map(move |cx| (cx, cy))).collect();
+                    let got: Vec<(usize, usize)> = share_cells(&share, stride, rows)
+                        .flat_map(|(cy, runs)| runs.flatten().map(move |cx| (cx, cy)))
+                        .collect();
                     let want: Vec<(usize, usize)> = (0..rows)
                         .flat_map(|cy| (0..stride).map(move |cx| (cx, cy)))
                         .filter(|&(cx, cy)| tile < 4 || share.owns_pixel(4 * cx as u32, 4 * cy as u32))

@@ -507,9 +507,20 @@ fn a_reused_video_processor_or_matrix_keeps_nothing_of_the_last_frame() {
     }
 }
 
+/// Which of the GQ's descents.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Descent {
+    /// With counting: the machine's every step.
+    Counting,
+    /// Without counting.
+    Plain,
+    /// Without counting, the cells wholly inside walked with the masks alone.
+    Filling,
+}
+
 /// The fragments (cell and code) of every polygon of a frame, alone (no masks), by
-/// the counting descent (the machine's, from the bounding cell) or the plain one.
-fn fragments_of(frame: &FrameList, counting: bool) -> Vec<Vec<(u32, u32, [u16; 16])>> {
+/// the counting descent (the machine's, from the bounding cell) or the others.
+fn fragments_of(frame: &FrameList, descent: Descent) -> Vec<Vec<(u32, u32, [u16; 16])>> {
     use albatros::model::stats::Counters;
     use albatros::vp::gq::{CellProcessors, GqPolygon, MaskLevels};
     use albatros::vp::spp::SubpixelProcessors;
@@ -528,12 +539,20 @@ fn fragments_of(frame: &FrameList, counting: bool) -> Vec<Vec<(u32, u32, [u16; 1
             if bbox[0] < bbox[1] && bbox[2] < bbox[3] {
                 let gp = GqPolygon { edges, opaque: false, bbox };
                 let mut sink = |frag: albatros::vp::gq::Fragment| {
-                    out.push((frag.px, frag.py, spp.fragment_code::<false>(&frag, edges, &mut scratch)));
+                    // A fragment of several cells, one by one.
+                    let mut cells = frag.cells;
+                    while cells != 0 {
+                        let c = cells.trailing_zeros();
+                        cells &= cells - 1;
+                        let (px, py) = (frag.px + 4 * (c & 1), frag.py + 4 * (c >> 1));
+                        let one = albatros::vp::gq::Fragment { px, py, cells: albatros::vp::gq::ONE_CELL, ..frag };
+                        out.push((px, py, spp.fragment_code::<false>(&one, edges, &mut scratch)));
+                    }
                 };
-                if counting {
-                    gq.descend::<true>(&gp, &mut counters, &mut sink);
-                } else {
-                    gq.descend::<false>(&gp, &mut counters, &mut sink);
+                match descent {
+                    Descent::Counting => gq.descend::<true>(&gp, &mut counters, &mut sink),
+                    Descent::Plain => gq.descend::<false>(&gp, &mut counters, &mut sink),
+                    Descent::Filling => gq.descend_filling(&gp, &mut counters, &mut sink),
                 }
             }
             out
@@ -546,7 +565,8 @@ fn fragments_of(frame: &FrameList, counting: bool) -> Vec<Vec<(u32, u32, [u16; 1
 /// fragments, with the same codes, in the same order. (A shortcut that started a
 /// small polygon at the cells of its size instead of its bounding cell failed here:
 /// beyond a sliver's acute tip the SPP table's sets can AND to a few subpixels more
-/// than a pixel past the polygon's box, in cells the bounding cell reaches.)
+/// than a pixel past the polygon's box, in cells the bounding cell reaches.) The
+/// filling descent, which walks the cells wholly inside with no edges, too.
 #[test]
 fn counting_and_plain_descents_give_the_same_fragments() {
     for name in ["default", "terrain", "city", "rombm"] {
@@ -554,9 +574,12 @@ fn counting_and_plain_descents_give_the_same_fragments() {
         scene.screen = albatros::db::Screen { width: 960, height: 540 };
         let db = albatros::gp::Database::new(scene);
         let (frame, _) = albatros::gp::frame_of_scene(&db, &albatros::gp::GpConfig::default());
-        let (machine, plain) = (fragments_of(&frame, true), fragments_of(&frame, false));
-        for (i, (m, p)) in machine.iter().zip(&plain).enumerate() {
-            assert_eq!(m, p, "{name}: polygon {i}");
+        let machine = fragments_of(&frame, Descent::Counting);
+        for descent in [Descent::Plain, Descent::Filling] {
+            let other = fragments_of(&frame, descent);
+            for (i, (m, p)) in machine.iter().zip(&other).enumerate() {
+                assert_eq!(m, p, "{name}, {descent:?}: polygon {i}");
+            }
         }
     }
 }
