@@ -120,6 +120,7 @@ use std::arch::x86_64::*;
 
 use glam::Vec3;
 
+use super::cc::CellColors;
 use super::gq::Share;
 use super::spp::{Visible, CELL_SIDE, FULL};
 
@@ -991,21 +992,21 @@ impl VideoBuffer {
     /// Accumulates one cell's visible pixels with their colours (device F1): the
     /// first fragment of a pixel (`vis.first`) is written, later ones added. (The
     /// VB's writes are counted once per frame, by `VideoProcessor::run`.)
-    pub fn accumulate(&mut self, vis: &Visible, colors: &[Vec3; 16]) {
+    pub fn accumulate(&mut self, vis: &Visible, colors: &CellColors) {
         let width = self.width as usize;
         match &mut self.memory {
             Memory::Float(accum) => for_visible(vis, width, |p, n, first, i| {
-                let c = colors[i] * (n as f32 / AREA_DENOMINATOR as f32);
+                let c = colors.pixel(i) * (n as f32 / AREA_DENOMINATOR as f32);
                 let a = &mut accum[p];
                 *a = if first { c } else { *a + c };
             }),
             Memory::Log { scale, codes } => {
                 let f1 = LogF1::new(scale);
-                accumulate_log::<_, true>(codes, width, vis, f1, |i| colors[i].to_array().map(|c| f1.encode(c)));
+                accumulate_log::<_, true>(codes, width, vis, f1, |i| colors.pixel(i).to_array().map(|c| f1.encode(c)));
             }
             Memory::Log8 { scale, codes } => accumulate_log8(codes, width, vis, colors, scale),
             Memory::Linear { scale, codes } => for_visible(vis, width, |p, n, first, i| {
-                let c = colors[i].to_array();
+                let c = colors.pixel(i).to_array();
                 let word = &mut codes[p];
                 for ch in 0..3 {
                     let v = scale.weigh(scale.encode(c[ch]), n);
@@ -1031,7 +1032,7 @@ impl VideoBuffer {
                 let word = color.to_array().map(|c| u16::from(encoder.encode(c)));
                 accumulate_log_flat(codes, width, vis, LogF1::new(scale), word);
             }
-            Memory::Float(_) | Memory::Linear { .. } => self.accumulate(vis, &[color; 16]),
+            Memory::Float(_) | Memory::Linear { .. } => self.accumulate(vis, &CellColors::splat(color)),
         }
     }
 
@@ -1385,7 +1386,7 @@ fn accumulate_log_flat<W: LogWord>(codes: &mut [W], width: usize, vis: &Visible,
 /// Zen 4's gathers cost about as much as the scalar loads they replace (valgrind
 /// counts a gather as one instruction: it showed city's colour + VB 148 -> 119 M).
 #[inline]
-fn accumulate_log8(codes: &mut [Word8], width: usize, vis: &Visible, colors: &[Vec3; 16], scale: &LogScale) {
+fn accumulate_log8(codes: &mut [Word8], width: usize, vis: &Visible, colors: &CellColors, scale: &LogScale) {
     let (f1, encoder) = (LogF1::new(scale), scale.encoder8.as_ref().expect("the 8-bit encoder").tables());
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx2") {
@@ -1404,11 +1405,11 @@ fn accumulate_log8_portable(
     codes: &mut [Word8],
     width: usize,
     vis: &Visible,
-    colors: &[Vec3; 16],
+    colors: &CellColors,
     f1: LogF1,
     encoder: Encoder8Tables,
 ) {
-    let word = |i: usize| colors[i].to_array().map(|c| u16::from(encoder.encode(c)));
+    let word = |i: usize| colors.pixel(i).to_array().map(|c| u16::from(encoder.encode(c)));
     accumulate_log::<_, true>(codes, width, vis, f1, word);
 }
 
@@ -1427,15 +1428,14 @@ const SOFTPLUS_LANE_MAX: i32 = SOFTPLUS_PADDED as i32 - 2;
 /// first fragment (stored as its codes, as [`accumulate_log`] does), eq. 3 (`ln S`
 /// by a gather over the subpixel count), eq. 4 with the stored codes for the later
 /// fragments (`ln(1 + e^x)` as a gather) and [`LogArith::store`], in lanes. Rows of
-/// the half are stored whole, or blended with the stored words where some pixels
-/// are hidden; a cell at the screen's right edge writes its pixels one by one.
+/// the half are stored whole, or their visible pixels one by one.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 fn accumulate_log8_avx2(
     codes: &mut [Word8],
     width: usize,
     vis: &Visible,
-    colors: &[Vec3; 16],
+    colors: &CellColors,
     f1: LogF1,
     encoder: Encoder8Tables,
 ) {
@@ -1444,7 +1444,6 @@ fn accumulate_log8_avx2(
     // Pixels of each row on the screen (those beyond have no visible subpixel).
     let cols = width.saturating_sub(px).min(SIDE);
     let lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
-    let row_bits = _mm_setr_epi32(1, 2, 4, 8);
     for half in 0..2 {
         let sets = _mm256_cvtepu16_epi32(load_u16x8(vis.sets[8 * half..8 * half + 8].try_into().expect("8 sets")));
         let zero = _mm256_setzero_si256();
@@ -1535,15 +1534,11 @@ fn accumulate_log8_avx2(
             let start = (py + 2 * half + row) * width + px;
             let new = if row == 0 { _mm256_castsi256_si128(word) } else { _mm256_extracti128_si256::<1>(word) };
             let dst = &mut codes[start..start + cols];
-            if cols == SIDE {
-                let new = if lanes == 0xF {
-                    new
-                } else {
-                    let keep_new = _mm_cmpeq_epi32(_mm_and_si128(_mm_set1_epi32(lanes as i32), row_bits), row_bits);
-                    _mm_blendv_epi8(load_row(dst), new, keep_new)
-                };
+            if lanes == 0xF && cols == SIDE {
                 store_row(dst, new);
             } else {
+                // The visible pixels one by one: a load of the row to blend with
+                // would often miss the cache (city's colour + VB 0.4 ms slower).
                 let mut words = [0u32; SIDE];
                 store_row(&mut words, new);
                 for (x, w) in dst.iter_mut().enumerate() {
@@ -1604,35 +1599,22 @@ fn store_row(row: &mut [Word8], v: __m128i) {
 }
 
 /// The colours of pixels `8 half .. 8 half + 8` of a cell as `[r, g, b]` over the
-/// lanes: three 32-byte loads of the `Vec3`s and a transpose in registers (the
-/// inverse of the colour computers' `store_half`).
+/// lanes: three 32-byte loads.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-fn load_colors_half(colors: &[Vec3; 16], half: usize) -> [__m256; 3] {
-    const { assert!(size_of::<[Vec3; 16]>() == 192) };
-    let half = half & 1;
-    // SAFETY: `colors` is 192 bytes of `f32` (the assertion above); half `half` (0
-    // or 1) is its 96 bytes from `96 half`, which the three loads read.
-    #[allow(unsafe_code, reason = "loads of three registers from the half cell they cover")]
-    let (y0, y1, y2) = unsafe {
-        let at = colors.as_ptr().cast::<f32>().add(24 * half);
-        (_mm256_loadu_ps(at), _mm256_loadu_ps(at.add(8)), _mm256_loadu_ps(at.add(16)))
-    };
-    // In each 128-bit half (pixels 0-3, 4-7): `x0 = r0 g0 b0 r1`, `x1 = g1 b1 r2 g2`,
-    // `x2 = b2 r3 g3 b3`.
-    let x0 = _mm256_permute2f128_ps::<0x30>(y0, y1);
-    let x1 = _mm256_permute2f128_ps::<0x21>(y0, y2);
-    let x2 = _mm256_permute2f128_ps::<0x30>(y1, y2);
-    // `r0 r3 r2 r1`, `g1 g0 g3 g2`, `b2 b1 b0 b3`, each permutation its own inverse.
-    let r = _mm256_blend_ps::<0b0100_0100>(_mm256_blend_ps::<0b0010_0010>(x0, x2), x1);
-    let g = _mm256_blend_ps::<0b0100_0100>(_mm256_blend_ps::<0b0010_0010>(x1, x0), x2);
-    let b = _mm256_blend_ps::<0b0100_0100>(_mm256_blend_ps::<0b0010_0010>(x2, x1), x0);
-    [
-        _mm256_permute_ps::<0b01_10_11_00>(r),
-        _mm256_permute_ps::<0b10_11_00_01>(g),
-        _mm256_permute_ps::<0b11_00_01_10>(b),
-    ]
+fn load_colors_half(colors: &CellColors, half: usize) -> [__m256; 3] {
+    let lanes = 8 * (half & 1)..8 * (half & 1) + 8;
+    // (A loop, not a closure: a closure would not inherit the target feature.)
+    let mut rgb = [_mm256_setzero_ps(); 3];
+    for (v, c) in rgb.iter_mut().zip(&colors.rgb) {
+        let c: &[f32; 8] = c[lanes.clone()].try_into().expect("8 lanes");
+        // SAFETY: `c` is 8 `f32`, the 32 bytes the load reads.
+        #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
+        let loaded = unsafe { _mm256_loadu_ps(c.as_ptr()) };
+        *v = loaded;
+    }
+    rgb
 }
 
 /// [`Encoder8Tables::encode`] of eight lanes (`hidden`: all ones in the lanes whose
@@ -2523,7 +2505,7 @@ mod tests {
                 let whole = px <= 4 && py == 0 && rng.next().is_multiple_of(4);
                 let (sets, first) = if whole { ([FULL; 16], FULL) } else { (sets, rng.next() as u16) };
                 let vis = Visible { px, py, sets, first, covered: false };
-                a.accumulate(&vis, &[color; 16]);
+                a.accumulate(&vis, &CellColors::splat(color));
                 b.accumulate_flat(&vis, color);
             }
             for y in 0..6 {
@@ -2541,12 +2523,12 @@ mod tests {
     /// negatives, denormals; zero, one, just below and above one).
     #[test]
     fn accumulate_log8_copies_match_portable() {
-        type Copy8 = fn(&mut [Word8], usize, &Visible, &[Vec3; 16], LogF1, Encoder8Tables);
+        type Copy8 = fn(&mut [Word8], usize, &Visible, &CellColors, LogF1, Encoder8Tables);
         let mut copies: Vec<(&str, Copy8)> = Vec::new();
         #[cfg(target_arch = "x86_64")]
         {
             #[allow(unsafe_code, reason = "a test of the AVX2 copy, after detection")]
-            fn avx2(c: &mut [Word8], w: usize, v: &Visible, k: &[Vec3; 16], f: LogF1, e: Encoder8Tables) {
+            fn avx2(c: &mut [Word8], w: usize, v: &Visible, k: &CellColors, f: LogF1, e: Encoder8Tables) {
                 // SAFETY: called only when the processor has AVX2 (below).
                 unsafe { accumulate_log8_avx2(c, w, v, k, f, e) }
             }
@@ -2598,6 +2580,7 @@ mod tests {
                 }))
             });
             let vis = Visible { px, py, sets, first, covered: false };
+            let colors = CellColors::from(colors);
             accumulate_log8_portable(&mut expect, w, &vis, &colors, f1, encoder);
             for ((name, copy), got) in copies.iter().zip(&mut got) {
                 copy(got, w, &vis, &colors, f1, encoder);
@@ -2639,7 +2622,7 @@ mod tests {
                     }))
                 });
                 let vis = Visible { px, py, sets, first, covered: false };
-                vb.accumulate(&vis, &colors);
+                vb.accumulate(&vis, &CellColors::from(colors));
                 for (i, &set) in sets.iter().enumerate().filter(|(_, &set)| set != 0) {
                     let p = (py as usize + i / 4) * 8 + px as usize + i % 4;
                     let n = set.count_ones();
