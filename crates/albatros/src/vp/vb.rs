@@ -1469,11 +1469,19 @@ fn accumulate_log8_avx2(
                     _mm256_sub_epi32(popcount16_avx2(sets), _mm256_set1_epi32(1)),
                     _mm256_set1_epi32(15),
                 );
-                // SAFETY: the index is masked to `0..16`, the table's entries.
-                #[allow(unsafe_code, reason = "a gather from the 16-entry ln S table, the index masked inside it")]
-                unsafe {
-                    _mm256_i32gather_epi32::<4>(f1.ln_area.as_ptr(), index)
-                }
+                // The 16 entries in two registers, each permuted by the index's
+                // low 3 bits, the one its bit 3 names kept (no gather).
+                let (low, high): (&[i32; 8], &[i32; 8]) =
+                    (f1.ln_area[..8].try_into().expect("8 entries"), f1.ln_area[8..].try_into().expect("8 entries"));
+                // SAFETY: `low` and `high` are 8 `i32` each, the 32 bytes each load reads.
+                #[allow(unsafe_code, reason = "unaligned loads of arrays of a register's size")]
+                let (low, high) =
+                    unsafe { (_mm256_loadu_si256(low.as_ptr().cast()), _mm256_loadu_si256(high.as_ptr().cast())) };
+                _mm256_blendv_epi8(
+                    _mm256_permutevar8x32_epi32(low, index),
+                    _mm256_permutevar8x32_epi32(high, index),
+                    _mm256_cmpgt_epi32(index, _mm256_set1_epi32(7)),
+                )
             };
             let mut stored = zero;
             if later != 0 {
