@@ -28,6 +28,9 @@
 //! fuses nor reorders float operations, and each copy does the same operations in
 //! the same order, so the bits are the same; the tests compare every copy the
 //! processor can run with the plain per-pixel definition.
+//!
+//! A cell's colours go to the VB as [`CellColors`], an array per component, which
+//! the explicit copies here and the VB's F1 store and load as whole registers.
 
 #[cfg(target_arch = "x86_64")]
 use std::arch::x86_64::*;
@@ -47,6 +50,54 @@ pub const CHANNELS: usize = 4;
 /// twice the pixel's stretch along the face's slope, a square that holds the
 /// projected pixel, so that the far field blurs rather than shimmers.
 pub const FOOTPRINT_FACTOR: f32 = 2.0;
+
+/// The colours of a cell's 16 pixels as the colour computers hand them to the VB
+/// (one cell of one polygon): structure of arrays, component `c` (R, G, B) of pixel
+/// `i` (`4 y + x`) at `rgb[c][i]`, so that the SIMD copies of the CC and of the VB's
+/// F1 store and load a component's lanes whole, with no transposes (AoS `[Vec3;
+/// 16]` took 6 two-source permutes per cell in the CC's AVX-512 copy and 12
+/// shuffles per half cell in the VB's AVX2 copy). 64-byte aligned: a component is
+/// one AVX-512 register.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(64))]
+pub struct CellColors {
+    /// `rgb[c][i]`: component `c` of pixel `i`.
+    pub rgb: [[f32; 16]; 3],
+}
+
+impl CellColors {
+    /// Every pixel `color`.
+    pub fn splat(color: Vec3) -> Self {
+        Self { rgb: color.to_array().map(|c| [c; 16]) }
+    }
+
+    /// The colour of pixel `i` (`4 y + x`).
+    #[inline]
+    pub fn pixel(&self, i: usize) -> Vec3 {
+        Vec3::new(self.rgb[0][i], self.rgb[1][i], self.rgb[2][i])
+    }
+
+    /// Sets the colour of pixel `i`.
+    #[inline]
+    pub fn set(&mut self, i: usize, color: Vec3) {
+        for (c, v) in self.rgb.iter_mut().zip(color.to_array()) {
+            c[i] = v;
+        }
+    }
+}
+
+impl Default for CellColors {
+    /// Black.
+    fn default() -> Self {
+        Self::splat(Vec3::ZERO)
+    }
+}
+
+impl From<[Vec3; 16]> for CellColors {
+    fn from(pixels: [Vec3; 16]) -> Self {
+        Self { rgb: std::array::from_fn(|c| std::array::from_fn(|i| pixels[i][c])) }
+    }
+}
 
 /// The channel that colours pixel `i` (`4 y + x`) of a cell.
 #[inline]
@@ -93,7 +144,7 @@ impl<'a> ColorComputers<'a> {
         &self,
         poly: &FramePolygon,
         vis: &Visible,
-        out: &mut [Vec3; 16],
+        out: &mut CellColors,
         counters: &mut Counters,
     ) {
         self.shade_cell(poly, vis, out);
@@ -111,7 +162,7 @@ impl<'a> ColorComputers<'a> {
 
     /// [`Self::shade`]'s colours by the best copy the processor runs. (Not generic
     /// over the counting: one copy of each, the groups inlined into it.)
-    fn shade_cell(&self, poly: &FramePolygon, vis: &Visible, out: &mut [Vec3; 16]) {
+    fn shade_cell(&self, poly: &FramePolygon, vis: &Visible, out: &mut CellColors) {
         #[cfg(target_arch = "x86_64")]
         if std::is_x86_feature_detected!("avx512f") {
             // SAFETY: `shade_avx512` only needs AVX-512F, which the processor was
@@ -140,7 +191,7 @@ impl<'a> ColorComputers<'a> {
     /// (Rust neither fuses nor reorders float operations), so the same bits.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn shade_avx2(&self, poly: &FramePolygon, vis: &Visible, out: &mut [Vec3; 16]) {
+    fn shade_avx2(&self, poly: &FramePolygon, vis: &Visible, out: &mut CellColors) {
         const N: usize = AVX2_LANES;
         let visible = visible_avx2(&vis.sets);
         let cell = CellShader::new(self, poly, vis);
@@ -186,9 +237,15 @@ impl<'a> ColorComputers<'a> {
     /// dependent operations per cell where AVX2 has one per half.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
-    fn shade_avx512(&self, poly: &FramePolygon, vis: &Visible, out: &mut [Vec3; 16]) {
+    fn shade_avx512(&self, poly: &FramePolygon, vis: &Visible, out: &mut CellColors) {
         let cell = CellShader::new(self, poly, vis);
-        store_cell(cell.group_avx512(), out);
+        for (out, c) in out.rgb.iter_mut().zip(cell.group_avx512()) {
+            // SAFETY: `out` is 16 `f32`, the 64 bytes the store writes.
+            #[allow(unsafe_code, reason = "an unaligned store of a register into an array of its size")]
+            unsafe {
+                _mm512_storeu_ps(out.as_mut_ptr(), c)
+            };
+        }
     }
 
     /// [`Self::shade_lanes`] compiled for AVX2, in groups of [`AVX2_LANES`]: the
@@ -196,13 +253,13 @@ impl<'a> ColorComputers<'a> {
     /// the same bits as the explicit copy on any processor with AVX2.
     #[cfg(all(test, target_arch = "x86_64"))]
     #[target_feature(enable = "avx2")]
-    fn shade_lanes_avx2(&self, poly: &FramePolygon, vis: &Visible, out: &mut [Vec3; 16]) {
+    fn shade_lanes_avx2(&self, poly: &FramePolygon, vis: &Visible, out: &mut CellColors) {
         self.shade_lanes::<AVX2_LANES>(poly, vis, out)
     }
 
     /// [`Self::shade`] for the build's target (x86-64-v2: SSE4.2) whatever the
     /// processor, in groups of [`LANES`] pixels (one 128-bit register).
-    pub fn shade_scalar(&self, poly: &FramePolygon, vis: &Visible, out: &mut [Vec3; 16]) {
+    pub fn shade_scalar(&self, poly: &FramePolygon, vis: &Visible, out: &mut CellColors) {
         self.shade_lanes::<LANES>(poly, vis, out)
     }
 
@@ -215,7 +272,7 @@ impl<'a> ColorComputers<'a> {
     /// repeating its last pixel. A hidden pixel's lane is computed like the others
     /// and left unused: no branch per lane.
     #[inline(always)]
-    fn shade_lanes<const N: usize>(&self, poly: &FramePolygon, vis: &Visible, out: &mut [Vec3; 16]) {
+    fn shade_lanes<const N: usize>(&self, poly: &FramePolygon, vis: &Visible, out: &mut CellColors) {
         const { assert!(N == 4 || N == 8 || N == 16) };
         let visible = crate::model::stats::visible_pixels(&vis.sets);
         let cell = CellShader::new(self, poly, vis);
@@ -231,8 +288,8 @@ impl<'a> ColorComputers<'a> {
                 let dx: &[f32; N] = STEP_X[N * b..N * (b + 1)].try_into().expect("N lanes");
                 let dy: &[f32; N] = STEP_Y[N * b..N * (b + 1)].try_into().expect("N lanes");
                 let c = cell.group(dx, dy);
-                for l in 0..N {
-                    out[N * b + l] = Vec3::new(c[0][l], c[1][l], c[2][l]);
+                for (out, c) in out.rgb.iter_mut().zip(&c) {
+                    out[N * b..N * (b + 1)].copy_from_slice(c);
                 }
             }
         } else {
@@ -248,7 +305,9 @@ impl<'a> ColorComputers<'a> {
                 let lane: [usize; N] = std::array::from_fn(|l| chunk[l.min(live - 1)]);
                 let c = cell.group(&lane.map(|i| STEP_X[i]), &lane.map(|i| STEP_Y[i]));
                 for (l, &i) in chunk.iter().enumerate() {
-                    out[i] = Vec3::new(c[0][l], c[1][l], c[2][l]);
+                    for (out, c) in out.rgb.iter_mut().zip(&c) {
+                        out[i] = c[l];
+                    }
                 }
             }
         }
@@ -311,19 +370,26 @@ impl<'a> CellShader<'a> {
     /// for each, in one loop so that what the groups share is computed once.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn groups_avx2(&self, groups: &[[i32; AVX2_LANES]], wanted: &[usize; 2], out: &mut [Vec3; 16]) {
+    fn groups_avx2(&self, groups: &[[i32; AVX2_LANES]], wanted: &[usize; 2], out: &mut CellColors) {
         for (lanes, &wanted) in groups.iter().zip(wanted) {
             let pixel =
                 _mm256_setr_epi32(lanes[0], lanes[1], lanes[2], lanes[3], lanes[4], lanes[5], lanes[6], lanes[7]);
             let c = self.group_avx2(pixel);
             if wanted == AVX2_LANES && lanes[0] % AVX2_LANES as i32 == 0 && lanes[AVX2_LANES - 1] == lanes[0] + 7 {
                 // Half a cell: its eight colours in place, whole.
-                store_half(c, out, lanes[0] as usize / AVX2_LANES);
+                let half = (lanes[0] as usize / AVX2_LANES) & 1;
+                for (out, c) in out.rgb.iter_mut().zip(c) {
+                    store_lanes(c, (&mut out[AVX2_LANES * half..AVX2_LANES * (half + 1)]).try_into().expect("8 lanes"));
+                }
             } else {
                 let mut rgb = [[0.0f32; AVX2_LANES]; 3];
-                store_colors(c, &mut rgb);
+                for (rgb, c) in rgb.iter_mut().zip(c) {
+                    store_lanes(c, rgb);
+                }
                 for (l, &i) in lanes.iter().enumerate().take(wanted) {
-                    out[i as usize & 15] = Vec3::new(rgb[0][l], rgb[1][l], rgb[2][l]);
+                    for (out, rgb) in out.rgb.iter_mut().zip(&rgb) {
+                        out[i as usize & 15] = rgb[l];
+                    }
                 }
             }
         }
@@ -493,111 +559,16 @@ fn visible_avx2(sets: &[u16; 16]) -> u16 {
     !(_mm_movemask_epi8(bytes) as u16)
 }
 
-/// The colours of pixels `8 half .. 8 half + 8` of a cell, `[r, g, b]` over the
-/// lanes, into `out` as its `Vec3`s (`x, y, z` in a row, 12 bytes each): a
-/// transpose in registers and three 32-byte stores.
+/// Lane `l` of `v` at `out[l]`.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-fn store_half([r, g, b]: [__m256; 3], out: &mut [Vec3; 16], half: usize) {
-    const { assert!(size_of::<Vec3>() == 12 && size_of::<[Vec3; 16]>() == 192) };
-    // In each 128-bit half (lanes 0-3, 4-7): the 12 floats `r0 g0 b0 r1 | g1 b1 r2
-    // g2 | b2 r3 g3 b3` are blends of `r` as `r0 r3 r2 r1`, `g` as `g1 g0 g3 g2`
-    // and `b` as `b2 b1 b0 b3`.
-    let r = _mm256_permute_ps::<0b01_10_11_00>(r);
-    let g = _mm256_permute_ps::<0b10_11_00_01>(g);
-    let b = _mm256_permute_ps::<0b11_00_01_10>(b);
-    let x0 = _mm256_blend_ps::<0b0100_0100>(_mm256_blend_ps::<0b0010_0010>(r, g), b);
-    let x1 = _mm256_blend_ps::<0b0100_0100>(_mm256_blend_ps::<0b0010_0010>(g, b), r);
-    let x2 = _mm256_blend_ps::<0b0100_0100>(_mm256_blend_ps::<0b0010_0010>(b, r), g);
-    // Lanes 0-3 then 4-7: `x0.lo x1.lo | x2.lo x0.hi | x1.hi x2.hi`.
-    let y0 = _mm256_permute2f128_ps::<0x20>(x0, x1);
-    let y1 = _mm256_permute2f128_ps::<0x30>(x2, x0);
-    let y2 = _mm256_permute2f128_ps::<0x31>(x1, x2);
-    let half = half & 1;
-    // SAFETY: `out` is 192 bytes of `f32` (the assertion above); half `half` (0
-    // or 1) is its 96 bytes from `96 half`, which the three stores write.
-    #[allow(unsafe_code, reason = "stores of three registers into the half cell they fill")]
+fn store_lanes(v: __m256, out: &mut [f32; AVX2_LANES]) {
+    // SAFETY: `out` is 8 `f32`, the 32 bytes the store writes.
+    #[allow(unsafe_code, reason = "an unaligned store of a register into an array of its size")]
     unsafe {
-        let at = out.as_mut_ptr().cast::<f32>().add(24 * half);
-        _mm256_storeu_ps(at, y0);
-        _mm256_storeu_ps(at.add(8), y1);
-        _mm256_storeu_ps(at.add(16), y2);
-    }
-}
-
-/// Lane `l` of `v` at `out[c][l]`.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[inline]
-fn store_colors(v: [__m256; 3], out: &mut [[f32; AVX2_LANES]; 3]) {
-    for (v, out) in v.into_iter().zip(out) {
-        // SAFETY: `out` is 8 `f32`, the 32 bytes the store writes.
-        #[allow(unsafe_code, reason = "an unaligned store of a register into an array of its size")]
-        unsafe {
-            _mm256_storeu_ps(out.as_mut_ptr(), v)
-        };
-    }
-}
-
-/// The colours of a cell's 16 pixels, `[r, g, b]` over the lanes, into `out` as
-/// its `Vec3`s: two-source permutes into the 48 floats `r0 g0 b0 r1 ...`, and
-/// three 64-byte stores.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-#[inline]
-fn store_cell([r, g, b]: [__m512; 3], out: &mut [Vec3; 16]) {
-    const { assert!(size_of::<[Vec3; 16]>() == 192) };
-    // Float `e` of store `j` is component `c` of pixel `p`, `16 j + e = 3 p + c`:
-    // first `r` and `g` in their places (index `p`, or `p + 16` for the second
-    // source), then `b` (the first source kept where `c < 2`).
-    const fn rg(j: usize) -> [i32; 16] {
-        let mut idx = [0i32; 16];
-        let mut e = 0;
-        while e < 16 {
-            let (p, c) = ((16 * j + e) / 3, (16 * j + e) % 3);
-            idx[e] = if c == 0 { p as i32 } else { (p + 16) as i32 };
-            e += 1;
-        }
-        idx
-    }
-    const fn then_b(j: usize) -> [i32; 16] {
-        let mut idx = [0i32; 16];
-        let mut e = 0;
-        while e < 16 {
-            let (p, c) = ((16 * j + e) / 3, (16 * j + e) % 3);
-            idx[e] = if c == 2 { (p + 16) as i32 } else { e as i32 };
-            e += 1;
-        }
-        idx
-    }
-    const RG: [[i32; 16]; 3] = [rg(0), rg(1), rg(2)];
-    const THEN_B: [[i32; 16]; 3] = [then_b(0), then_b(1), then_b(2)];
-    let mut o = [_mm512_setzero_ps(); 3];
-    for j in 0..3 {
-        let rg = _mm512_permutex2var_ps(r, index_avx512(&RG[j]), g);
-        o[j] = _mm512_permutex2var_ps(rg, index_avx512(&THEN_B[j]), b);
-    }
-    let [o0, o1, o2] = o;
-    // SAFETY: `out` is 192 bytes of `f32` (the assertion above), which the three
-    // 64-byte stores fill.
-    #[allow(unsafe_code, reason = "stores of three registers into the cell they fill")]
-    unsafe {
-        let at = out.as_mut_ptr().cast::<f32>();
-        _mm512_storeu_ps(at, o0);
-        _mm512_storeu_ps(at.add(16), o1);
-        _mm512_storeu_ps(at.add(32), o2);
-    }
-}
-
-/// Sixteen `i32` in an AVX-512 register.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-#[inline]
-fn index_avx512(a: &[i32; 16]) -> __m512i {
-    _mm512_setr_epi32(
-        a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14], a[15],
-    )
+        _mm256_storeu_ps(out.as_mut_ptr(), v)
+    };
 }
 
 /// `q + a dx + b dy` of sixteen lanes, in that order.
@@ -641,9 +612,9 @@ impl ColorComputers<'_> {
         let mut sets = [0u16; 16];
         sets[Q_PIXEL] = super::spp::FULL;
         let vis = Visible { px: 0, py: 0, sets, first: 0, covered: false };
-        let mut out = [Vec3::ZERO; 16];
+        let mut out = CellColors::default();
         self.shade::<false>(poly, &vis, &mut out, &mut Counters::default());
-        Some(out[Q_PIXEL])
+        Some(out.pixel(Q_PIXEL))
     }
 }
 
@@ -734,9 +705,9 @@ mod tests {
             for _ in 0..8 {
                 let (px, py) = (4 * (next() * 480.0) as u32, 4 * (next() * 270.0) as u32);
                 let vis = Visible { px, py, sets: [super::super::spp::FULL; 16], first: 0, covered: false };
-                let mut out = [Vec3::splat(-7.0); 16];
+                let mut out = CellColors::splat(Vec3::splat(-7.0));
                 cc.shade::<false>(&poly, &vis, &mut out, &mut Counters::new(9));
-                for (i, c) in out.iter().enumerate() {
+                for (i, c) in (0..16).map(|i| (i, out.pixel(i))) {
                     // `==`: zero's sign may differ, and no VB mode tells them apart.
                     assert!(c.to_array() == flat.to_array(), "round {round}, cell ({px}, {py}), pixel {i}");
                 }
@@ -809,10 +780,10 @@ mod tests {
             let (px, py) = (4 * (next() * 480.0) as u32, 4 * (next() * 270.0) as u32);
             let vis = Visible { px, py, sets, first: 0, covered: false };
             let unset = Vec3::splat(-7.0);
-            let mut out = [unset; 16];
+            let mut out = CellColors::splat(unset);
             cc.shade::<false>(&poly, &vis, &mut out, &mut Counters::new(9));
             // The build target's code, whatever the processor has.
-            let mut scalar = [unset; 16];
+            let mut scalar = CellColors::splat(unset);
             cc.shade_scalar(&poly, &vis, &mut scalar);
             // Each x86-64 copy the processor can run (else the target's colours
             // again): the compiler's AVX2 code of the portable lanes, the explicit
@@ -836,14 +807,14 @@ mod tests {
                 };
             }
             // The visible pixels; what the others get is unspecified.
-            for (i, c) in out.iter().enumerate().filter(|(i, _)| visible >> i & 1 == 1) {
+            for (i, c) in (0..16).map(|i| (i, out.pixel(i))).filter(|(i, _)| visible >> i & 1 == 1) {
                 let expect = plain_pixel(&cc, &poly, px, py, i);
                 let bits = |v: &Vec3| v.to_array().map(f32::to_bits);
-                assert_eq!(bits(c), bits(&expect), "round {round}, pixel {i}: {c} against {expect}");
-                assert_eq!(bits(&scalar[i]), bits(&expect), "round {round}, pixel {i}: the target's code");
-                assert_eq!(bits(&lanes_avx2[i]), bits(&expect), "round {round}, pixel {i}: the AVX2 lanes");
-                assert_eq!(bits(&avx2[i]), bits(&expect), "round {round}, pixel {i}: the AVX2 copy");
-                assert_eq!(bits(&avx512[i]), bits(&expect), "round {round}, pixel {i}: the AVX-512 copy");
+                assert_eq!(bits(&c), bits(&expect), "round {round}, pixel {i}: {c} against {expect}");
+                assert_eq!(bits(&scalar.pixel(i)), bits(&expect), "round {round}, pixel {i}: the target's code");
+                assert_eq!(bits(&lanes_avx2.pixel(i)), bits(&expect), "round {round}, pixel {i}: the AVX2 lanes");
+                assert_eq!(bits(&avx2.pixel(i)), bits(&expect), "round {round}, pixel {i}: the AVX2 copy");
+                assert_eq!(bits(&avx512.pixel(i)), bits(&expect), "round {round}, pixel {i}: the AVX-512 copy");
             }
         }
     }

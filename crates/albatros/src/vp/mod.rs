@@ -132,7 +132,7 @@ impl VideoProcessor {
         // write replaces what the pixel held. Pixels outside the share are never
         // read out of this VP.
         let cc = ColorComputers::new(frame, &self.textures);
-        let mut colors = [Vec3::ZERO; 16];
+        let mut colors = cc::CellColors::default();
         let mut inner = Counters::new(self.gq.root_level);
         let vb = &mut self.vb;
         // The last polygon seen and its one colour, if it has one

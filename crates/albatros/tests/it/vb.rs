@@ -416,9 +416,9 @@ fn vb_cost() {
             for py in (0..h).step_by(4) {
                 for px in (0..w).step_by(4) {
                     let full = Visible { px, py, sets: [0xFFF0; 16], first: 0xFFFF, covered: false };
-                    vb.accumulate(&full, &colors);
+                    vb.accumulate(&full, &colors.into());
                     let rest = Visible { px, py, sets: [0x000F; 16], first: 0, covered: true };
-                    vb.accumulate(&rest, &colors);
+                    vb.accumulate(&rest, &colors.into());
                 }
             }
         }
