@@ -17,7 +17,7 @@
 
 use super::edge::{EdgeCode, ExactLine, Tg, EDGE_FRAC_BITS, SNAP_ONE};
 use super::gq::{Fragment, Share};
-use super::tables::{SppMode, SppRowTable, SPP_V_BITS};
+use super::tables::{SppMode, SppRowTable, ROW_Q_COUNT, SPP_V_BITS};
 #[cfg(test)]
 use super::tables::{SppTable, SPP_Q_COUNT, SPP_Q_MAX, SPP_Q_MIN};
 use crate::model::stats::Counters;
@@ -201,16 +201,16 @@ impl SubpixelProcessors {
             // as V1 is; the next pixel across is 8 eighths further, so its q is 8
             // less. V is exact (additions of the slope), so five roundings serve 16
             // pixels.
-            let mut q = [0i32; 5];
-            for (k, qk) in q.iter_mut().enumerate() {
-                *qk = round_q(a.v1.0 + e.slope.0 * k as i64);
+            let mut line = [0usize; 5];
+            for (k, l) in line.iter_mut().enumerate() {
+                *l = SppRowTable::line(round_q(a.v1.0 + e.slope.0 * k as i64));
             }
             // The edge's sets, a word per pixel line along it (LR = 0: complements).
             let part = self.row_table.part(e.tg);
             let flip = if e.lr { 0 } else { u64::MAX };
             let mut words = [0u64; 4];
             for (along, w) in words.iter_mut().enumerate() {
-                *w = part[SppRowTable::index(q[along], q[along + 1])] ^ flip;
+                *w = part[line[along] * ROW_Q_COUNT + line[along + 1]] ^ flip;
             }
             if vertex != 0 {
                 exact_into(&e.exact, e.lr, frag.px, frag.py, vertex, vertical, &mut words);

@@ -225,13 +225,8 @@ pub const ROW_Q_MIN: i32 = SPP_Q_MIN;
 pub const ROW_Q_MAX: i32 = SPP_Q_MAX + (((SUBPIXEL_SIDE - 1) as i32) << SPP_V_BITS);
 /// Number of distinct row `q`.
 pub const ROW_Q_COUNT: usize = (ROW_Q_MAX - ROW_Q_MIN + 1) as usize;
-/// Largest `|q2 - q1|` along a pixel line: V changes by at most a pixel per pixel
-/// (the slope of either TG is at most 1), and rounding to eighths keeps that bound.
-pub const ROW_D_MAX: i32 = 1 << SPP_V_BITS;
-/// Number of distinct `q2 - q1`.
-pub const ROW_D_COUNT: usize = (2 * ROW_D_MAX + 1) as usize;
 /// Entries of one part of the row table.
-pub const ROW_ENTRIES: usize = ROW_Q_COUNT * ROW_D_COUNT;
+pub const ROW_ENTRIES: usize = ROW_Q_COUNT * ROW_Q_COUNT;
 
 /// The SPP table read a row at a time: one edge's subpixel sets for the four pixels
 /// of a cell's pixel line across its V lines, by one look-up instead of four.
@@ -239,16 +234,18 @@ pub const ROW_ENTRIES: usize = ROW_Q_COUNT * ROW_D_COUNT;
 /// A vertical edge's pixel `across` of a cell row reads the [`SppTable`] at `(q1 - 8
 /// across, q2 - 8 across)`, with `q1`, `q2` its V on the row's two borders relative
 /// to the cell's left border, in eighths of a pixel (likewise a horizontal edge's
-/// pixels of a cell column). The four sets are therefore a function of `(q1, q2)`;
-/// since `|q2 - q1| <= 8` ([`ROW_D_MAX`]) and the table saturates, of `(clamp(q1,
-/// -8, 40), q2 - q1)`: below -8 every pixel reads its "line before the pixel" entry,
-/// above 40 its "line beyond the pixel" one (each pixel's `q`s stay on the same side
-/// of the pixel when `q1` is saturated and `q2 - q1` kept).
+/// pixels of a cell column). The four sets are therefore a function of `(q1, q2)`,
+/// and of `(clamp(q1, -8, 40), clamp(q2, -8, 40))`: the table saturates each `q` to
+/// `-8..=16`, and below -8 (above 40) every pixel's `q - 8 across` is below -8 (above
+/// 16) whether or not `q` is clamped first.
 ///
 /// Layout: two parts, `[TG]` (0 horizontal, 1 vertical), of [`ROW_ENTRIES`] words at
-/// `(q1 + 8) * 17 + (q2 - q1 + 8)`; word bits `[16 j + 15 .. 16 j]` hold the set of
-/// pixel `across = j` for `LR = 1`. `LR = 0` is the complement (the table's two
-/// halves are complements by construction), so the word XOR all ones.
+/// `(q1 + 8) * 49 + (q2 + 8)` ([`Self::line`] of each `q`); word bits `[16 j + 15 ..
+/// 16 j]` hold the set of pixel `across = j` for `LR = 1`. `LR = 0` is the complement
+/// (the table's two halves are complements by construction), so the word XOR all
+/// ones. Both `q` clamped alike rather than `q1` and `q2 - q1` (the earlier layout,
+/// 57 x 17 words): a look-up is then one clamp per pixel line and a multiply-add,
+/// and the words an edge reads (`|q2 - q1| <= 8`) still span about 9 KiB.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct SppRowTable {
     /// Which build of the SPP table.
@@ -278,14 +275,14 @@ impl SppRowTable {
                 debug_assert!(half.iter().zip(table.half(tg, false)).all(|(&t, &f)| t == !f));
                 let mut part = [0u64; ROW_ENTRIES];
                 for q1 in ROW_Q_MIN..=ROW_Q_MAX {
-                    for d in -ROW_D_MAX..=ROW_D_MAX {
+                    for q2 in ROW_Q_MIN..=ROW_Q_MAX {
                         let mut word = 0u64;
                         for across in 0..SUBPIXEL_SIDE as i32 {
                             let shift = across << SPP_V_BITS;
-                            let set = SppTable::lookup_in(half, q1 - shift, q1 + d - shift);
+                            let set = SppTable::lookup_in(half, q1 - shift, q2 - shift);
                             word |= u64::from(set) << (16 * across);
                         }
-                        part[Self::index(q1, q1 + d)] = word;
+                        part[Self::index(q1, q2)] = word;
                     }
                 }
                 part
@@ -300,14 +297,17 @@ impl SppRowTable {
         &self.parts[tg as usize]
     }
 
-    /// The index of `(q1, q2)` in a part: `q1` saturated, `q2 - q1` within
-    /// `-8..=8` (always so for an edge's `q`s; clamped so that the index is in
-    /// bounds whatever it is given).
-    #[inline]
+    /// A pixel line's `q`, saturated, as a row or column number of a part
+    /// (`0..ROW_Q_COUNT`).
+    #[inline(always)]
+    pub fn line(q: i32) -> usize {
+        (q.clamp(ROW_Q_MIN, ROW_Q_MAX) - ROW_Q_MIN) as usize
+    }
+
+    /// The index of `(q1, q2)` in a part, whatever `q1` and `q2` are.
+    #[inline(always)]
     pub fn index(q1: i32, q2: i32) -> usize {
-        debug_assert!((q2 - q1).abs() <= ROW_D_MAX, "q1 {q1}, q2 {q2}");
-        let d = (q2 - q1).clamp(-ROW_D_MAX, ROW_D_MAX);
-        (q1.clamp(ROW_Q_MIN, ROW_Q_MAX) - ROW_Q_MIN) as usize * ROW_D_COUNT + (d + ROW_D_MAX) as usize
+        Self::line(q1) * ROW_Q_COUNT + Self::line(q2)
     }
 }
 
@@ -422,24 +422,25 @@ mod tests {
     }
 
     /// Every row word is the four look-ups of its pixels, for both LR, far beyond
-    /// the saturation on both sides.
+    /// the saturation on both sides and for any pair of `q` (not only those of a
+    /// line no steeper than 45 degrees).
     #[test]
     fn row_table_is_four_lookups() {
         for mode in [SppMode::Area, SppMode::Sample] {
             let (table, rows) = (SppTable::get(mode), SppRowTable::get(mode));
             for tg in [Tg::Horizontal, Tg::Vertical] {
                 for q1 in -90..=120 {
-                    for d in -ROW_D_MAX..=ROW_D_MAX {
-                        let word = rows.part(tg)[SppRowTable::index(q1, q1 + d)];
+                    for q2 in -90..=120 {
+                        let word = rows.part(tg)[SppRowTable::index(q1, q2)];
                         for (lr, flip) in [(true, 0), (false, u64::MAX)] {
                             let word = word ^ flip;
                             for across in 0..4 {
                                 let shift = across << SPP_V_BITS;
-                                let want = SppTable::lookup_in(table.half(tg, lr), q1 - shift, q1 + d - shift);
+                                let want = SppTable::lookup_in(table.half(tg, lr), q1 - shift, q2 - shift);
                                 assert_eq!(
                                     (word >> (16 * across)) as u16,
                                     want,
-                                    "{mode:?} {tg:?} lr {lr} q1 {q1} d {d}"
+                                    "{mode:?} {tg:?} lr {lr} q1 {q1} q2 {q2}"
                                 );
                             }
                         }
