@@ -17,7 +17,7 @@
 
 use super::edge::{EdgeCode, ExactLine, Tg, EDGE_FRAC_BITS, SNAP_ONE};
 use super::gq::{Fragment, Share};
-use super::tables::{SppMode, SppRowTable, ROW_Q_COUNT, SPP_V_BITS};
+use super::tables::{SppMode, SppRowTable, ROW_PART_WORDS, ROW_Q_COUNT, ROW_Q_MAX, ROW_Q_MIN, SPP_V_BITS};
 #[cfg(test)]
 use super::tables::{SppTable, SPP_Q_COUNT, SPP_Q_MAX, SPP_Q_MIN};
 use crate::model::stats::Counters;
@@ -88,6 +88,53 @@ pub struct SubpixelProcessors {
 fn round_q(v: i64) -> i32 {
     const SHIFT: u32 = EDGE_FRAC_BITS - SPP_V_BITS;
     ((v + (1 << (SHIFT - 1))) >> SHIFT) as i32
+}
+
+/// The row-table indices ([`SppRowTable::index`]) of an edge's four pixel lines in a
+/// cell, from V1 (relative to the cell) and the slope: line `k` reads `(q_k, q_k+1)`,
+/// `q_k = round_q(V1 + k slope)`.
+#[inline(always)]
+fn line_indices_portable(v1: i64, slope: i64) -> [usize; 4] {
+    let mut line = [0usize; 5];
+    for (k, l) in line.iter_mut().enumerate() {
+        *l = SppRowTable::line(round_q(v1 + slope * k as i64));
+    }
+    std::array::from_fn(|k| line[k] * ROW_Q_COUNT + line[k + 1])
+}
+
+/// [`line_indices_portable`] in SSE2 (x86-64's baseline: the detection is a constant), the same
+/// numbers (tested): the five sums in 64-bit lanes and shifted logically (the low 32
+/// bits of a logical and an arithmetic shift by 29 agree, and `round_q` keeps those);
+/// packed to 16 bits with signed saturation, which the clamp to `ROW_Q_MIN..=ROW_Q_MAX`
+/// then cannot tell from the 32-bit value; the index `line_k * 49 + line_k+1` in 16-bit
+/// lanes (at most 2400). About 30 instructions against 48 for the five roundings,
+/// clamps and products in general registers.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "sse2")]
+#[inline]
+fn line_indices_sse2(v1: i64, slope: i64) -> [usize; 4] {
+    use std::arch::x86_64::{
+        _mm_add_epi16, _mm_add_epi64, _mm_castps_si128, _mm_castsi128_ps, _mm_cvtsi128_si64, _mm_max_epi16,
+        _mm_min_epi16, _mm_mullo_epi16, _mm_packs_epi32, _mm_set1_epi16, _mm_set1_epi64x, _mm_set_epi64x,
+        _mm_shuffle_ps, _mm_srli_epi64, _mm_srli_si128, _mm_sub_epi16,
+    };
+    const SHIFT: i32 = (EDGE_FRAC_BITS - SPP_V_BITS) as i32;
+    const HALF: i64 = 1 << (SHIFT - 1);
+    // `round_q` of V on lines 0, 1 | 2, 3 | 4, (5): each 64-bit lane's low half.
+    let step = _mm_set1_epi64x(slope * 2);
+    let l01 = _mm_add_epi64(_mm_set_epi64x(v1 + slope, v1), _mm_set1_epi64x(HALF));
+    let l23 = _mm_add_epi64(l01, step);
+    let l45 = _mm_add_epi64(l23, step);
+    let (l01, l23, l45) = (_mm_srli_epi64::<SHIFT>(l01), _mm_srli_epi64::<SHIFT>(l23), _mm_srli_epi64::<SHIFT>(l45));
+    // The low halves of lines 0..3 as four i32, then with line 4's to eight i16.
+    const LOW_HALVES: i32 = 0b10_00_10_00;
+    let q0123 = _mm_castps_si128(_mm_shuffle_ps::<LOW_HALVES>(_mm_castsi128_ps(l01), _mm_castsi128_ps(l23)));
+    let q = _mm_packs_epi32(q0123, l45);
+    let q = _mm_min_epi16(_mm_max_epi16(q, _mm_set1_epi16(ROW_Q_MIN as i16)), _mm_set1_epi16(ROW_Q_MAX as i16));
+    let line = _mm_sub_epi16(q, _mm_set1_epi16(ROW_Q_MIN as i16));
+    let index = _mm_add_epi16(_mm_mullo_epi16(line, _mm_set1_epi16(ROW_Q_COUNT as i16)), _mm_srli_si128::<2>(line));
+    let packed = _mm_cvtsi128_si64(index) as u64;
+    std::array::from_fn(|k| (packed >> (16 * k)) as usize & (ROW_PART_WORDS - 1))
 }
 
 impl SubpixelProcessors {
@@ -180,6 +227,40 @@ impl SubpixelProcessors {
         if self.mode == SppMode::Exact {
             return self.fragment_code_exact::<STATS>(frag, edges, counters);
         }
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("sse2") {
+            // SAFETY: `table_code_sse2` only needs SSE2, which the processor was just
+            // found to have (on x86-64 it always has: the check is a constant).
+            #[allow(unsafe_code, reason = "a function compiled for SSE2, after detection")]
+            unsafe {
+                return self.table_code_sse2::<STATS>(frag, edges, counters);
+            }
+        }
+        self.table_code::<STATS>(frag, edges, counters, line_indices_portable)
+    }
+
+    /// [`Self::table_code`] with the row-table indices in SSE2 ([`line_indices_sse2`]).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "sse2")]
+    fn table_code_sse2<const STATS: bool>(
+        &self,
+        frag: &Fragment,
+        edges: &[EdgeCode],
+        counters: &mut Counters,
+    ) -> [u16; 16] {
+        self.table_code::<STATS>(frag, edges, counters, |v1, slope| line_indices_sse2(v1, slope))
+    }
+
+    /// The table modes' fragment code, with `line_indices` giving an edge's four
+    /// row-table indices ([`line_indices_portable`] or a copy of it in SIMD).
+    #[inline(always)]
+    fn table_code<const STATS: bool>(
+        &self,
+        frag: &Fragment,
+        edges: &[EdgeCode],
+        counters: &mut Counters,
+        line_indices: impl Fn(i64, i64) -> [usize; 4],
+    ) -> [u16; 16] {
         // The code as pixel rows (word `y`, bits `16 x ..` the pixel `(x, y)`) from the
         // vertical edges, and as pixel columns (word `x`, bits `16 y ..`) from the
         // horizontal ones: an edge's row-table words AND in whole.
@@ -187,33 +268,24 @@ impl SubpixelProcessors {
         let mut columns = [u64::MAX; 4];
         for a in frag.active {
             let e = &edges[a.edge as usize];
-            // The pixels of this cell near an endpoint of the edge (bit `4 y + x`),
-            // where the exact rule replaces the table; none when no endpoint is near
-            // the cell at all.
-            let vertex = if self.vertex_exact && near_end_cell(&e.exact, frag.px, frag.py) {
-                vertex_pixels(&e.exact, frag.px, frag.py)
-            } else {
-                0
-            };
             let vertical = e.tg == Tg::Vertical;
             // q on the five pixel lines of the cell (rows for a vertical edge, columns
             // for a horizontal one), relative to the cell's first pixel column (row),
             // as V1 is; the next pixel across is 8 eighths further, so its q is 8
             // less. V is exact (additions of the slope), so five roundings serve 16
             // pixels.
-            let mut line = [0usize; 5];
-            for (k, l) in line.iter_mut().enumerate() {
-                *l = SppRowTable::line(round_q(a.v1.0 + e.slope.0 * k as i64));
-            }
+            let index = line_indices(a.v1.0, e.slope.0);
             // The edge's sets, a word per pixel line along it (LR = 0: complements).
             let part = self.row_table.part(e.tg);
             let flip = if e.lr { 0 } else { u64::MAX };
             let mut words = [0u64; 4];
-            for (along, w) in words.iter_mut().enumerate() {
-                *w = part[line[along] * ROW_Q_COUNT + line[along + 1]] ^ flip;
+            for (w, i) in words.iter_mut().zip(index) {
+                *w = part[i] ^ flip;
             }
-            if vertex != 0 {
-                exact_into(&e.exact, e.lr, frag.px, frag.py, vertex, vertical, &mut words);
+            // The pixels of this cell near an endpoint of the edge, where the exact
+            // rule replaces the table (about one edge in seven on default: out of line).
+            if self.vertex_exact && near_end_cell(&e.exact, frag.px, frag.py) {
+                words = vertex_words(&e.exact, e.lr, frag.px, frag.py, vertical, words);
             }
             let code = if vertical { &mut rows } else { &mut columns };
             for (c, w) in code.iter_mut().zip(words) {
@@ -365,15 +437,21 @@ fn near_end(line: &ExactLine, x: u32, y: u32) -> bool {
 /// whose widened span holds its x times the rows whose widened span holds its y.
 #[inline]
 fn vertex_pixels(line: &ExactLine, px: u32, py: u32) -> u16 {
+    const ONE: i64 = SNAP_ONE as i64;
+    const MARGIN: i64 = VERTEX_MARGIN as i64;
+    // The pixels `d` (0..4) of the cell's row or column from pixel `p` whose widened
+    // span `(p + d) ONE - MARGIN ..= (p + d + 1) ONE + MARGIN` holds the coordinate
+    // `c`: with `t = c - (p ONE - MARGIN)`, `t - ONE - 2 MARGIN <= d ONE <= t`, the
+    // `d` from `ceil((t - ONE - 2 MARGIN) / ONE)` to `floor(t / ONE)`, as bits.
+    let span = |c: i32, p: u32| -> u16 {
+        let t = i64::from(c) - (i64::from(p) * ONE - MARGIN);
+        let last = (t.div_euclid(ONE) + 1).clamp(0, 4);
+        let first = (-(ONE + 2 * MARGIN - t).div_euclid(ONE)).clamp(0, 4);
+        ((1u16 << last) - 1) & (0xF << first)
+    };
     let mut pixels = 0u16;
     for &(ex, ey) in &line.ends {
-        let (mut cols, mut rows) = (0u16, 0u16);
-        for d in 0..4i32 {
-            let x0 = (px as i32 + d) * SNAP_ONE - VERTEX_MARGIN;
-            let y0 = (py as i32 + d) * SNAP_ONE - VERTEX_MARGIN;
-            cols |= u16::from(ex >= x0 && ex <= x0 + SNAP_ONE + 2 * VERTEX_MARGIN) << d;
-            rows |= u16::from(ey >= y0 && ey <= y0 + SNAP_ONE + 2 * VERTEX_MARGIN) << d;
-        }
+        let (cols, rows) = (span(ex, px), span(ey, py));
         // Row bit `y` to nibble `y`, times the four column bits.
         let spread = (rows & 1) | (rows & 2) << 3 | (rows & 4) << 6 | (rows & 8) << 9;
         pixels |= spread * cols;
@@ -519,13 +597,28 @@ fn exact_into_sse2(line: &ExactLine, lr: bool, px: u32, py: u32, near: u16, vert
 }
 
 /// Whether one of the edge's endpoints lies within [`VERTEX_MARGIN`] of the 4x4 cell
-/// at pixel `(px, py)`.
-#[inline]
+/// at pixel `(px, py)`: per coordinate `x0 <= e <= x0 + span` as one unsigned compare
+/// of `e - x0` (in `i64`: no wrap), both endpoints without a branch.
+#[inline(always)]
 fn near_end_cell(line: &ExactLine, px: u32, py: u32) -> bool {
-    let side = CELL_SIDE as i32 * SNAP_ONE;
-    let (x0, y0) = (px as i32 * SNAP_ONE - VERTEX_MARGIN, py as i32 * SNAP_ONE - VERTEX_MARGIN);
-    let (x1, y1) = (x0 + side + 2 * VERTEX_MARGIN, y0 + side + 2 * VERTEX_MARGIN);
-    line.ends.iter().any(|&(ex, ey)| ex >= x0 && ex <= x1 && ey >= y0 && ey <= y1)
+    const SPAN: u64 = (CELL_SIDE as i32 * SNAP_ONE + 2 * VERTEX_MARGIN) as u64;
+    let x0 = i64::from(px) * i64::from(SNAP_ONE) - i64::from(VERTEX_MARGIN);
+    let y0 = i64::from(py) * i64::from(SNAP_ONE) - i64::from(VERTEX_MARGIN);
+    let within = |(ex, ey): (i32, i32)| ((i64::from(ex) - x0) as u64 <= SPAN) & ((i64::from(ey) - y0) as u64 <= SPAN);
+    within(line.ends[0]) | within(line.ends[1])
+}
+
+/// An edge's words (see [`exact_into`]) with the exact sets at its vertex pixels in
+/// the cell at pixel `(px, py)`. Out of line: most edges have no endpoint near the
+/// cell, and inlined its set-up was hoisted into every fragment's.
+#[inline(never)]
+fn vertex_words(line: &ExactLine, lr: bool, px: u32, py: u32, vertical: bool, words: [u64; 4]) -> [u64; 4] {
+    let mut words = words;
+    let vertex = vertex_pixels(line, px, py);
+    if vertex != 0 {
+        exact_into(line, lr, px, py, vertex, vertical, &mut words);
+    }
+    words
 }
 
 /// The subpixels of pixel `(x, y)` on the polygon's side of an exact line: the
@@ -839,6 +932,75 @@ mod tests {
                     assert_eq!(words, want, "line {line:?}, cell ({px}, {py}), near {near:#06x}");
                 }
             }
+        }
+    }
+
+    /// The SSE2 row-table indices are the portable ones: V and slopes of every size
+    /// (far beyond the row table's saturation, and up to the sums' 64-bit range),
+    /// on and around the rounding's halves, negative and positive.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn line_indices_sse2_are_the_portable_ones() {
+        let mut next = xorshift(0x0051_DECA_5E0F_1DE5);
+        let half = 1i64 << (EDGE_FRAC_BITS - SPP_V_BITS - 1);
+        for k in 0..200_000 {
+            let scale = [1i64 << 20, 1 << 30, 1 << 33, 1 << 36, 1 << 44, 1 << 58][k % 6];
+            let mut v1 = next(2 * scale) - scale;
+            let slope = match k % 5 {
+                0 => 0,
+                1 => next(1 << 33) - (1 << 32),
+                2 => (next(17) - 8) * half,
+                _ => next(2 * scale / 8) - scale / 8,
+            };
+            if k % 3 == 0 {
+                // On a rounding half, or one unit either side.
+                v1 = (v1 / (2 * half)) * 2 * half + half + next(3) - 1;
+            }
+            // SAFETY: x86-64 always has SSE2.
+            #[allow(unsafe_code, reason = "a function compiled for SSE2, on x86-64")]
+            let got = unsafe { line_indices_sse2(v1, slope) };
+            assert_eq!(got, line_indices_portable(v1, slope), "v1 {v1}, slope {slope}");
+        }
+    }
+
+    /// The portable fragment code (the path of processors without SSE2) is the one
+    /// [`SubpixelProcessors::fragment_code`] gives, over the cases of
+    /// `fragment_code_is_the_plain_definition` (which checks the latter against the
+    /// plain definition).
+    #[test]
+    fn portable_fragment_code_is_fragment_code() {
+        use super::super::edge::{EdgeCode, ScreenFx};
+        use super::super::gq::ActiveEdge;
+        let mut next = xorshift(0x7AB1_E5C0_DE5A_11CE);
+        for k in 0..20_000 {
+            let root_side = 4u32 << (k % 12);
+            let mode = [SppMode::Area, SppMode::Sample][k % 2];
+            let mut spp = SubpixelProcessors::new(CELL_SIDE, CELL_SIDE, mode);
+            spp.vertex_exact = k % 3 != 1;
+            let cells = i64::from(root_side / CELL_SIDE);
+            let (px, py) = (4 * next(cells) as u32, 4 * next(cells) as u32);
+            let one = i64::from(SNAP_ONE);
+            let span = i64::from(root_side) * one;
+            let mut point = |near: bool| {
+                let (x, y) = if near {
+                    (i64::from(px) * one + next(12 * one) - 4 * one, i64::from(py) * one + next(12 * one) - 4 * one)
+                } else {
+                    (next(span + 1), next(span + 1))
+                };
+                (ScreenFx(x.clamp(0, span) as i32), ScreenFx(y.clamp(0, span) as i32))
+            };
+            let edges: Vec<EdgeCode> =
+                (0..4).filter_map(|i| EdgeCode::new(point(i % 2 == 0), point(true), i % 3 == 0, root_side)).collect();
+            let active: Vec<ActiveEdge> = edges
+                .iter()
+                .enumerate()
+                .map(|(i, e)| ActiveEdge::at_cell(i as u32, e, i64::from(px), i64::from(py), 4))
+                .collect();
+            let frag = Fragment { px, py, active: &active, cells: super::super::gq::ONE_CELL };
+            let mut counters = Counters::new(3);
+            let want = spp.fragment_code::<false>(&frag, &edges, &mut counters);
+            let got = spp.table_code::<false>(&frag, &edges, &mut counters, line_indices_portable);
+            assert_eq!(got, want, "case {k}");
         }
     }
 

@@ -227,6 +227,10 @@ pub const ROW_Q_MAX: i32 = SPP_Q_MAX + (((SUBPIXEL_SIDE - 1) as i32) << SPP_V_BI
 pub const ROW_Q_COUNT: usize = (ROW_Q_MAX - ROW_Q_MIN + 1) as usize;
 /// Entries of one part of the row table.
 pub const ROW_ENTRIES: usize = ROW_Q_COUNT * ROW_Q_COUNT;
+/// Words of one part as stored: [`ROW_ENTRIES`] padded with zeros to a power of
+/// two, so that an index masked to 12 bits needs no bounds check (the SPP's SIMD
+/// indices; the padding is never read, and the words read stay where they were).
+pub const ROW_PART_WORDS: usize = ROW_ENTRIES.next_power_of_two();
 
 /// The SPP table read a row at a time: one edge's subpixel sets for the four pixels
 /// of a cell's pixel line across its V lines, by one look-up instead of four.
@@ -239,7 +243,8 @@ pub const ROW_ENTRIES: usize = ROW_Q_COUNT * ROW_Q_COUNT;
 /// `-8..=16`, and below -8 (above 40) every pixel's `q - 8 across` is below -8 (above
 /// 16) whether or not `q` is clamped first.
 ///
-/// Layout: two parts, `[TG]` (0 horizontal, 1 vertical), of [`ROW_ENTRIES`] words at
+/// Layout: two parts, `[TG]` (0 horizontal, 1 vertical), of [`ROW_ENTRIES`] words
+/// (stored padded to [`ROW_PART_WORDS`]) at
 /// `(q1 + 8) * 49 + (q2 + 8)` ([`Self::line`] of each `q`); word bits `[16 j + 15 ..
 /// 16 j]` hold the set of pixel `across = j` for `LR = 1`. `LR = 0` is the complement
 /// (the table's two halves are complements by construction), so the word XOR all
@@ -250,7 +255,7 @@ pub const ROW_ENTRIES: usize = ROW_Q_COUNT * ROW_Q_COUNT;
 pub struct SppRowTable {
     /// Which build of the SPP table.
     pub mode: SppMode,
-    parts: Vec<[u64; ROW_ENTRIES]>,
+    parts: Vec<[u64; ROW_PART_WORDS]>,
 }
 
 impl SppRowTable {
@@ -273,7 +278,7 @@ impl SppRowTable {
             .map(|&tg| {
                 let half = table.half(tg, true);
                 debug_assert!(half.iter().zip(table.half(tg, false)).all(|(&t, &f)| t == !f));
-                let mut part = [0u64; ROW_ENTRIES];
+                let mut part = [0u64; ROW_PART_WORDS];
                 for q1 in ROW_Q_MIN..=ROW_Q_MAX {
                     for q2 in ROW_Q_MIN..=ROW_Q_MAX {
                         let mut word = 0u64;
@@ -293,7 +298,7 @@ impl SppRowTable {
 
     /// The part of one TG (`LR = 1`).
     #[inline]
-    pub fn part(&self, tg: Tg) -> &[u64; ROW_ENTRIES] {
+    pub fn part(&self, tg: Tg) -> &[u64; ROW_PART_WORDS] {
         &self.parts[tg as usize]
     }
 
