@@ -95,7 +95,7 @@ pub const MAX_SIDE: u32 = 64;
 pub const STRIP_STEP: u32 = 16;
 /// The largest tile side in pixels.
 pub const MAX_TILE: u32 = 4096;
-/// The tile side used when none is given ([`Matrix::for_threads`]): 64-pixel tiles
+/// The tile side of [`Matrix::tiled_for_threads`]: 64-pixel tiles
 /// (cells of level L-4). Each VP repeats the descent of a polygon above the tile
 /// level, so small tiles cost work; large ones balance the load worse. Measured on
 /// `default` at 1920 x 1080, a 2 x 1 matrix against one VP: the VPs' instructions
@@ -186,10 +186,21 @@ impl Matrix {
     }
 
     /// A matrix for `n` threads: a strip matrix of `n` VPs ([`Self::striped`]).
-    /// (Measured against P3's interleave by 64-pixel tiles in BENCHMARKS.md.)
+    /// (Measured against [`Self::tiled_for_threads`] in BENCHMARKS.md.)
     pub fn for_threads(width: u32, height: u32, config: VpConfig, n: usize) -> Result<Self, MatrixError> {
         let n = n.clamp(1, MAX_SIDE as usize);
         Self::striped(width, height, config, n as u32, n)
+    }
+
+    /// P3's matrix for `n` threads: `n` VPs in a near-square shape, interleaved by
+    /// [`DEFAULT_TILE`]-pixel tiles.
+    pub fn tiled_for_threads(width: u32, height: u32, config: VpConfig, n: usize) -> Result<Self, MatrixError> {
+        let n = n.clamp(1, (MAX_SIDE * MAX_SIDE) as usize) as u32;
+        let mut p = (n as f64).sqrt().floor() as u32;
+        while !n.is_multiple_of(p) {
+            p -= 1;
+        }
+        Self::new(width, height, config, n / p, p, DEFAULT_TILE, n as usize)
     }
 
     /// Renders a frame list on every VP and gathers the interleaved image.
