@@ -112,6 +112,10 @@ struct BenchArgs {
     /// Worker threads (video processors of the matrix).
     #[arg(long, default_value_t = 1)]
     threads: usize,
+    /// How the matrix's VPs share the screen: strips whose widths follow the work
+    /// (the default), or P3's interleave by 64-pixel tiles.
+    #[arg(long, value_enum, default_value_t = MatrixArg::Strips)]
+    matrix: MatrixArg,
     /// Frames timed after the warm-up.
     #[arg(long, default_value_t = 10)]
     frames: usize,
@@ -129,6 +133,24 @@ struct BenchArgs {
     /// frames.
     #[arg(long)]
     pipeline: bool,
+}
+
+/// How a matrix's VPs share the screen.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum MatrixArg {
+    /// Vertical strips moved after every frame to even out the work.
+    Strips,
+    /// P3's fixed interleave by 64-pixel tiles, near-square.
+    Tiles,
+}
+
+impl MatrixArg {
+    fn make(self, screen: Screen, config: VpConfig, threads: usize) -> Result<Matrix, albatros::matrix::MatrixError> {
+        match self {
+            MatrixArg::Strips => Matrix::for_threads(screen.width, screen.height, config, threads),
+            MatrixArg::Tiles => Matrix::tiled_for_threads(screen.width, screen.height, config, threads),
+        }
+    }
 }
 
 #[derive(clap::Args)]
@@ -435,10 +457,11 @@ fn bench(args: BenchArgs) -> Result<()> {
         let vp_cfg = VpConfig { hierarchical: !args.p1_masks, ..VpConfig::default() };
         let mut vp = VideoProcessor::new(screen.width, screen.height, vp_cfg);
         vp.set_textures(maps.clone());
-        let mut matrix = Matrix::for_threads(screen.width, screen.height, vp_cfg, args.threads)?;
+        let mut matrix = args.matrix.make(screen, vp_cfg, args.threads)?;
         matrix.set_textures(maps.clone());
         if args.pipeline {
-            let intervals = pipelined(&db, screen, vp_cfg, &maps, args.threads, args.warmup + args.frames)?;
+            let intervals =
+                pipelined(&db, screen, vp_cfg, &maps, args.threads, args.matrix, args.warmup + args.frames)?;
             let row = BenchRow { name: &name, screen, threads: args.threads, frames: args.frames, stages: None };
             row.print(spread(intervals[args.warmup..].to_vec()), args.json);
             continue;
@@ -508,9 +531,10 @@ fn pipelined(
     vp_cfg: VpConfig,
     maps: &std::sync::Arc<TextureMaps>,
     threads: usize,
+    shape: MatrixArg,
     frames: usize,
 ) -> Result<Vec<f64>> {
-    let mut matrix = Matrix::for_threads(screen.width, screen.height, vp_cfg, threads)?;
+    let mut matrix = shape.make(screen, vp_cfg, threads)?;
     matrix.set_textures(maps.clone());
     let gp_cfg = GpConfig { threads, ..GpConfig::default() };
     let mut pipeline = Pipeline::new(db, screen, gp_cfg, matrix);

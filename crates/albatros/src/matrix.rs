@@ -11,8 +11,23 @@
 //! The video memories together form one interleaved image: each pixel is taken from
 //! the VP that owns it, then read out once (the F2 filter needs neighbours from other
 //! VPs). **Invariant: the image is the same, byte for byte, whatever the matrix size,
-//! the tile size and the number of threads** — every pixel sees the same polygons in
-//! the same order with the same subpixel decisions.
+//! the tile size, the strips and the number of threads** — every pixel sees the same
+//! polygons in the same order with the same subpixel decisions.
+//!
+//! Beside P3's interleave, a *strip matrix* ([`Matrix::striped`], what
+//! [`Matrix::for_threads`] makes) puts its VPs side by side in vertical strips of
+//! the screen and moves the strips' borders after every frame so that each VP gets
+//! an even part of the work the last frame took (each VP's time, spread over its
+//! strip by its tallies of work per cell column, [`VideoProcessor::column_work`]): a
+//! VP then repeats only the descents of the polygons that cross its strip's
+//! borders, touches only its strip of the memories, and drops every polygon outside
+//! its strip before its descent. On a frame like the last one (a simulator's frames
+//! follow each other closely) the VPs finish together. Strips, not bands of rows:
+//! the work of a frame crowds into rows (the far ground at the horizon of `default`:
+//! one row of cells held a tenth of the frame), not into columns. A modern choice
+//! beside the papers' fixed interleave, measured in BENCHMARKS.md; the image is the
+//! same either way, and which VP renders which strip is the only thing the times
+//! decide.
 
 use rayon::prelude::*;
 
@@ -28,9 +43,21 @@ pub struct Matrix {
     pub p: u32,
     /// Rows.
     pub q: u32,
-    /// Tile side in pixels (1 for P3's pixel interleave).
+    /// Tile side in pixels (1 for P3's pixel interleave; the step of the strips'
+    /// borders in a strip matrix).
     pub tile: u32,
+    /// The VPs are side by side in strips that follow the work
+    /// ([`Matrix::striped`]); `p` is their number.
+    pub striped: bool,
     vps: Vec<VideoProcessor>,
+    /// The strips of the next frame (a strip matrix), chosen from the last frame's
+    /// work: the VPs' shares change only as a frame starts, so that the readout of
+    /// a frame reads the shares it was rendered with.
+    next_strips: Option<Vec<(u32, u32)>>,
+    /// Each VP's render time of the last frame, in seconds (a strip matrix).
+    times: Vec<f64>,
+    /// Each VP's seconds per unit of its tally, smoothed (a strip matrix).
+    scales: Vec<f64>,
     /// The matrix's threads (shared, so that [`Self::render_beside`] can run a
     /// frame on them while it borrows the VPs).
     pool: std::sync::Arc<rayon::ThreadPool>,
@@ -54,13 +81,21 @@ pub enum MatrixError {
     /// The thread pool could not be made.
     #[error("thread pool: {0}")]
     Threads(String),
+    /// Strips that do not suit the matrix.
+    #[error("strips {0:?}: a strip matrix needs one strip per VP, left to right from column 0 to the screen's width, borders at multiples of the step")]
+    Strips(Vec<(u32, u32)>),
 }
 
 /// The largest matrix side.
 pub const MAX_SIDE: u32 = 64;
+/// The step of a strip matrix's borders in pixel columns: cells of level L-2, and a
+/// whole number of the readout's F2 runs (so that a row is read out by whole runs
+/// from each VP). Each step is a tile of the VPs' shares, pre-masked in the mask
+/// memory of that level.
+pub const STRIP_STEP: u32 = 16;
 /// The largest tile side in pixels.
 pub const MAX_TILE: u32 = 4096;
-/// The tile side used when none is given ([`Matrix::for_threads`]): 64-pixel tiles
+/// The tile side of [`Matrix::tiled_for_threads`]: 64-pixel tiles
 /// (cells of level L-4). Each VP repeats the descent of a polygon above the tile
 /// level, so small tiles cost work; large ones balance the load worse. Measured on
 /// `default` at 1920 x 1080, a 2 x 1 matrix against one VP: the VPs' instructions
@@ -90,22 +125,76 @@ impl Matrix {
         for j in 0..q {
             for i in 0..p {
                 let mut vp = VideoProcessor::new(width, height, config);
-                let share = Share { tile, p, q, i, j };
+                let share = Share::interleaved(tile, p, q, i, j);
                 vp.gq.share = share;
                 vp.spp.share = share;
                 vps.push(vp);
             }
         }
+        Ok(Self {
+            p,
+            q,
+            tile,
+            striped: false,
+            vps,
+            next_strips: None,
+            times: Vec::new(),
+            scales: Vec::new(),
+            pool: Self::pool(threads)?,
+        })
+    }
+
+    fn pool(threads: usize) -> Result<std::sync::Arc<rayon::ThreadPool>, MatrixError> {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads.max(1))
             .build()
             .map_err(|e| MatrixError::Threads(e.to_string()))?;
-        Ok(Self { p, q, tile, vps, pool: std::sync::Arc::new(pool) })
+        Ok(std::sync::Arc::new(pool))
     }
 
-    /// A matrix for `n` threads: `n` VPs in a near-square shape, interleaved by
-    /// [`DEFAULT_TILE`]-pixel tiles.
+    /// A strip matrix of `n` VPs (module docs) on `threads` threads: vertical
+    /// strips of whole [`STRIP_STEP`]-column steps, of even widths for the first
+    /// frame and then of even work. One VP renders the whole screen.
+    pub fn striped(width: u32, height: u32, config: VpConfig, n: u32, threads: usize) -> Result<Self, MatrixError> {
+        if n == 0 || n > MAX_SIDE {
+            return Err(MatrixError::Shape { p: n, q: 1 });
+        }
+        let steps = width.div_ceil(STRIP_STEP);
+        let vps = (0..n)
+            .map(|k| {
+                let mut vp = VideoProcessor::new(width, height, config);
+                if n > 1 {
+                    let border = |k: u32| if k == n { width } else { (steps * k / n * STRIP_STEP).min(width) };
+                    let share = Share::strip(STRIP_STEP, border(k), border(k + 1));
+                    vp.gq.share = share;
+                    vp.spp.share = share;
+                }
+                vp
+            })
+            .collect();
+        Ok(Self {
+            p: n,
+            q: 1,
+            tile: STRIP_STEP,
+            striped: n > 1,
+            vps,
+            next_strips: None,
+            times: Vec::new(),
+            scales: Vec::new(),
+            pool: Self::pool(threads)?,
+        })
+    }
+
+    /// A matrix for `n` threads: a strip matrix of `n` VPs ([`Self::striped`]).
+    /// (Measured against [`Self::tiled_for_threads`] in BENCHMARKS.md.)
     pub fn for_threads(width: u32, height: u32, config: VpConfig, n: usize) -> Result<Self, MatrixError> {
+        let n = n.clamp(1, MAX_SIDE as usize);
+        Self::striped(width, height, config, n as u32, n)
+    }
+
+    /// P3's matrix for `n` threads: `n` VPs in a near-square shape, interleaved by
+    /// [`DEFAULT_TILE`]-pixel tiles.
+    pub fn tiled_for_threads(width: u32, height: u32, config: VpConfig, n: usize) -> Result<Self, MatrixError> {
         let n = n.clamp(1, (MAX_SIDE * MAX_SIDE) as usize) as u32;
         let mut p = (n as f64).sqrt().floor() as u32;
         while !n.is_multiple_of(p) {
@@ -147,8 +236,92 @@ impl Matrix {
 
     /// Renders a frame list on every VP (their video memories hold the result).
     pub fn render_frame(&mut self, frame: &FrameList) {
-        let vps = &mut self.vps;
-        self.pool.install(|| vps.par_iter_mut().for_each(|vp| vp.render_frame(frame)));
+        if let Some(strips) = self.next_strips.take() {
+            for (vp, (x0, x1)) in self.vps.iter_mut().zip(strips) {
+                let share = Share::strip(self.tile, x0, x1);
+                vp.gq.share = share;
+                vp.spp.share = share;
+            }
+        }
+        let (vps, times) = (&mut self.vps, &mut self.times);
+        times.resize(vps.len(), 0.0);
+        let timed = self.striped;
+        self.pool.install(|| {
+            vps.par_iter_mut().zip(times.par_iter_mut()).for_each(|(vp, time)| {
+                let start = timed.then(std::time::Instant::now);
+                vp.render_frame(frame);
+                if let Some(start) = start {
+                    *time = start.elapsed().as_secs_f64();
+                }
+            })
+        });
+        if self.striped {
+            self.next_strips = Some(self.balance(frame.width));
+        }
+    }
+
+    /// A strip matrix's strips for the next frame: each cell column's work as its
+    /// VP tallied it ([`VideoProcessor::column_work`] and a background pass per
+    /// column), scaled by how long that VP took for its strip's tally (the tallies'
+    /// weights are estimates; the time puts them in seconds on this machine, whose
+    /// units may weigh otherwise), the scale smoothed from frame to frame; then
+    /// [`even_strips`].
+    fn balance(&mut self, width: u32) -> Vec<(u32, u32)> {
+        use crate::vp::{spp::CELL_SIDE, work::BACKGROUND_COLUMN};
+        let columns = self.vps[0].column_work.len();
+        let mut cost = vec![0.0f64; columns];
+        self.scales.resize(self.vps.len(), 0.0);
+        for (k, vp) in self.vps.iter().enumerate() {
+            let (x0, x1) = vp.gq.share.strip;
+            let cells = (x0 / CELL_SIDE) as usize..(x1.div_ceil(CELL_SIDE) as usize).min(columns);
+            let tally = |c: usize| f64::from(vp.column_work[c]) + BACKGROUND_COLUMN as f64;
+            let total: f64 = cells.clone().map(tally).sum();
+            if total > 0.0 && self.times[k] > 0.0 {
+                let scale = self.times[k] / total;
+                // Smoothed: one frame's time is noisy on a shared machine.
+                self.scales[k] = if self.scales[k] > 0.0 { 0.5 * (self.scales[k] + scale) } else { scale };
+            }
+        }
+        // A VP not timed yet (an empty strip) counts at the others' mean scale.
+        let timed: Vec<f64> = self.scales.iter().copied().filter(|&s| s > 0.0).collect();
+        let mean = if timed.is_empty() { 1.0 } else { timed.iter().sum::<f64>() / timed.len() as f64 };
+        for (k, vp) in self.vps.iter().enumerate() {
+            let scale = if self.scales[k] > 0.0 { self.scales[k] } else { mean };
+            let (x0, x1) = vp.gq.share.strip;
+            let cells = (x0 / CELL_SIDE) as usize..(x1.div_ceil(CELL_SIDE) as usize).min(columns);
+            for (c, &w) in cost[cells.clone()].iter_mut().zip(&vp.column_work[cells]) {
+                *c = (f64::from(w) + BACKGROUND_COLUMN as f64) * scale;
+            }
+        }
+        even_strips(&cost, self.vps.len(), self.tile, width)
+    }
+
+    /// The strips of a strip matrix's VPs now (pixel columns `x0 .. x1`, left to
+    /// right).
+    pub fn strips(&self) -> Vec<(u32, u32)> {
+        self.vps.iter().map(|vp| vp.gq.share.strip).collect()
+    }
+
+    /// Sets the strips of a strip matrix's next frame (the matrix moves them again
+    /// after it): one per VP, left to right, each from where the last ended (the
+    /// first from 0, the last to the screen's width), borders at multiples of the
+    /// matrix's step. For experiments and tests: the image does not depend on them.
+    pub fn set_strips(&mut self, strips: &[(u32, u32)]) -> Result<(), MatrixError> {
+        let width = self.vps[0].vb.width;
+        let mut x = 0;
+        let fits = self.striped
+            && strips.len() == self.vps.len()
+            && strips.iter().all(|&(x0, x1)| {
+                let ok = x0 == x && x1 >= x0 && (x1 == width || (x1 < width && x1 % self.tile == 0));
+                x = x1;
+                ok
+            })
+            && x == width;
+        if !fits {
+            return Err(MatrixError::Strips(strips.to_vec()));
+        }
+        self.next_strips = Some(strips.to_vec());
+        Ok(())
     }
 
     /// Runs `f` on the matrix's threads: the GP's several processors
@@ -202,5 +375,88 @@ impl Matrix {
     /// The video processors.
     pub fn vps(&self) -> &[VideoProcessor] {
         &self.vps
+    }
+}
+
+/// The borders of `n` strips of whole `step`-column steps of a `width`-column screen
+/// that share `cost` (per column of last-level cells) most evenly: strip `k` ends at
+/// the step border nearest to where the running sum reaches `(k + 1) / n` of the
+/// whole. Left to right, every column in exactly one strip; a strip may be empty.
+pub fn even_strips(cost: &[f64], n: usize, step: u32, width: u32) -> Vec<(u32, u32)> {
+    let cells_per_step = (step / crate::vp::spp::CELL_SIDE).max(1) as usize;
+    let steps = width.div_ceil(step) as usize;
+    let per_step: Vec<f64> = (0..steps)
+        .map(|s| cost[(s * cells_per_step).min(cost.len())..((s + 1) * cells_per_step).min(cost.len())].iter().sum())
+        .collect();
+    let total: f64 = per_step.iter().sum();
+    let mut strips = Vec::with_capacity(n);
+    let (mut s, mut sum, mut x0) = (0usize, 0.0f64, 0u32);
+    for k in 1..=n {
+        let x1 = if k == n {
+            width
+        } else {
+            let target = total * k as f64 / n as f64;
+            // Take steps while the running sum comes closer to the target with them.
+            while s < steps && sum + per_step[s] / 2.0 < target {
+                sum += per_step[s];
+                s += 1;
+            }
+            (s as u32 * step).min(width)
+        };
+        strips.push((x0, x1));
+        x0 = x1;
+    }
+    strips
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Strips of even cost split an even screen evenly, and a screen whose cost
+    /// is all in one place puts a border next to it.
+    #[test]
+    fn even_strips_split_the_cost() {
+        assert_eq!(even_strips(&[1.0; 480], 2, 16, 1920), vec![(0, 960), (960, 1920)]);
+        assert_eq!(even_strips(&[1.0; 480], 3, 16, 1920), vec![(0, 640), (640, 1280), (1280, 1920)]);
+        let mut cost = vec![0.0; 480];
+        cost[100] = 1.0;
+        let strips = even_strips(&cost, 2, 16, 1920);
+        assert!(strips[0].1 == 400 || strips[0].1 == 416, "{strips:?}");
+        // No cost at all: every strip but the last empty is still a split of the
+        // screen.
+        assert_eq!(even_strips(&[0.0; 10], 2, 16, 40), vec![(0, 0), (0, 40)]);
+    }
+
+    proptest! {
+        /// The strips tile the screen left to right at multiples of the step, and
+        /// none costs more than an even share and one step.
+        #[test]
+        fn even_strips_tile_the_screen_and_even_out_the_cost(
+            cost in proptest::collection::vec(0.0f64..100.0, 1..200),
+            n in 1usize..6,
+            step_log in 2u32..6,
+        ) {
+            let step = 1 << step_log;
+            let width = cost.len() as u32 * crate::vp::spp::CELL_SIDE;
+            let strips = even_strips(&cost, n, step, width);
+            prop_assert_eq!(strips.len(), n);
+            let mut x = 0;
+            for &(x0, x1) in &strips {
+                prop_assert_eq!(x0, x);
+                prop_assert!(x1 >= x0 && (x1 == width || x1 % step == 0));
+                x = x1;
+            }
+            prop_assert_eq!(x, width);
+            let cells = |(x0, x1): (u32, u32)| (x0 / crate::vp::spp::CELL_SIDE) as usize..(x1 / crate::vp::spp::CELL_SIDE) as usize;
+            let total: f64 = cost.iter().sum();
+            let per_cell = (step / crate::vp::spp::CELL_SIDE).max(1) as usize;
+            let max_step = cost.chunks(per_cell).map(|c| c.iter().sum::<f64>()).fold(0.0, f64::max);
+            for &strip in &strips {
+                let c: f64 = cost[cells(strip)].iter().sum();
+                prop_assert!(c <= total / n as f64 + max_step + 1e-6, "strip {:?} costs {} of {}", strip, c, total);
+            }
+        }
     }
 }

@@ -131,6 +131,8 @@ pub struct MaskMemory {
     bits: Vec<u64>,
     /// The words as a frame starts: the pre-masked cells set.
     cleared: Vec<u64>,
+    /// The words with only the cells off the screen set.
+    off_screen: Vec<u64>,
 }
 
 /// The Z-order (Morton) index of cell `(x, y)`: the bits of `x` at the even
@@ -156,7 +158,7 @@ impl MaskMemory {
     fn new(level: u32, stride: usize, rows: usize) -> Self {
         let side = 1usize << level;
         let words = (side * side).div_ceil(64);
-        let mut m = Self { stride, rows, bits: vec![0; words], cleared: Vec::new() };
+        let mut m = Self { stride, rows, bits: vec![0; words], cleared: Vec::new(), off_screen: Vec::new() };
         for cy in 0..side {
             for cx in 0..side {
                 if cx >= stride || cy >= rows {
@@ -165,6 +167,7 @@ impl MaskMemory {
             }
         }
         m.cleared = m.bits.clone();
+        m.off_screen = m.bits.clone();
         m
     }
 
@@ -229,9 +232,11 @@ impl MaskMemory {
         self.cleared.copy_from_slice(&self.bits);
     }
 
-    /// Forgets every pre-mask but the off-screen cells': the state after [`Self::new`].
-    fn reset_cleared(&mut self, level: u32) {
-        *self = Self::new(level, self.stride, self.rows);
+    /// Forgets every pre-mask but the off-screen cells': the state after [`Self::new`]
+    /// (copied, not made again: a strip matrix's shares change from frame to frame).
+    fn reset_cleared(&mut self) {
+        self.bits.copy_from_slice(&self.off_screen);
+        self.cleared.copy_from_slice(&self.off_screen);
     }
 }
 
@@ -242,6 +247,12 @@ impl MaskMemory {
 /// interleave by whole cells of level `L - m`. Everything outside the share is
 /// pre-masked, like the area off the screen, so a VP never spends a cell or a
 /// subpixel on it below the tile's level.
+///
+/// A share may also be cut to a strip of pixel columns `strip.0 .. strip.1`
+/// (multiples of the tile side): a matrix of VPs side by side in vertical strips,
+/// each a contiguous part of the screen, whose widths [`crate::matrix::Matrix`]
+/// moves from frame to frame to even out the VPs' work (a modern choice beside P3's
+/// fixed interleave: see ARCHITECTURE.md).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Share {
     /// Tile side in pixels (a power of two).
@@ -254,16 +265,47 @@ pub struct Share {
     pub i: u32,
     /// This VP's row.
     pub j: u32,
+    /// The pixel columns `strip.0 .. strip.1` the share is cut to
+    /// ([`Share::ALL_COLUMNS`]: not cut).
+    pub strip: (u32, u32),
 }
 
 impl Share {
     /// The whole screen (a 1 x 1 matrix).
-    pub const WHOLE: Share = Share { tile: 4, p: 1, q: 1, i: 0, j: 0 };
+    pub const WHOLE: Share = Share { tile: 4, p: 1, q: 1, i: 0, j: 0, strip: Self::ALL_COLUMNS };
+    /// [`Share::strip`] of a share not cut to a strip.
+    pub const ALL_COLUMNS: (u32, u32) = (0, u32::MAX);
+
+    /// VP `(i, j)` of a `p x q` matrix interleaved by tiles of `tile` pixels (P3).
+    pub fn interleaved(tile: u32, p: u32, q: u32, i: u32, j: u32) -> Self {
+        Share { tile, p, q, i, j, strip: Self::ALL_COLUMNS }
+    }
+
+    /// The strip of pixel columns `x0 .. x1` (multiples of `tile`, a power of two of
+    /// at least a cell) of a matrix of VPs side by side in strips.
+    pub fn strip(tile: u32, x0: u32, x1: u32) -> Self {
+        Share { tile, p: 1, q: 1, i: 0, j: 0, strip: (x0, x1) }
+    }
+
+    /// Whether the share is the whole screen (nothing pre-masked but the area off
+    /// the screen).
+    pub fn is_whole(&self) -> bool {
+        self.p * self.q == 1 && self.strip == Self::ALL_COLUMNS
+    }
 
     /// Whether pixel `(x, y)` is this VP's.
     #[inline]
     pub fn owns_pixel(&self, x: u32, y: u32) -> bool {
-        (x / self.tile) % self.p == self.i && (y / self.tile) % self.q == self.j
+        (x / self.tile) % self.p == self.i
+            && (y / self.tile) % self.q == self.j
+            && x >= self.strip.0
+            && x < self.strip.1
+    }
+
+    /// Whether the share's strip holds any pixel of columns `x0 .. x1`.
+    #[inline]
+    pub fn meets_columns(&self, x0: u32, x1: u32) -> bool {
+        x0 < self.strip.1 && x1 > self.strip.0
     }
 }
 
@@ -418,11 +460,11 @@ impl CellProcessors {
     /// Makes the memories' cleared states for `self.share`: the cells of other VPs
     /// set at the share's tile level.
     fn pre_mask_share(&mut self) {
-        for (k, m) in self.memories.iter_mut().enumerate() {
-            m.reset_cleared(k as u32);
+        for m in &mut self.memories {
+            m.reset_cleared();
         }
         let share = self.share;
-        if share.p * share.q > 1 && share.tile >= 4 && share.tile <= self.side(0) {
+        if !share.is_whole() && share.tile >= 4 && share.tile <= self.side(0) {
             let level = self.root_level + 2 - share.tile.trailing_zeros();
             let m = &mut self.memories[level as usize];
             for cy in 0..m.rows {

@@ -84,6 +84,27 @@ pub struct VideoProcessor {
     pub counters: Counters,
     /// The texture map memory (none at first: textured faces keep their colour).
     pub textures: Arc<TextureMaps>,
+    /// The work of the last frame per column of last-level cells, in the units of
+    /// [`work`] (a strip matrix evens out its VPs' work with it): what the VP did
+    /// there, not what it took in time, so the same frame list gives the same tallies.
+    pub column_work: Vec<u32>,
+}
+
+/// The units of [`VideoProcessor::column_work`], estimates of the work the VP did, in
+/// tenths of the instructions of a cell's colour computation: a cell crossed by
+/// edges (the GQ's descent to it and the SPP's look-ups), a cell wholly inside a
+/// polygon (the mask walk and the SPP's step) and a cell with visible pixels (the
+/// CC and the VB). Measured on the built-in scenes at 1920 x 1080 with callgrind
+/// (BENCHMARKS.md, session 5).
+pub mod work {
+    /// A cell with active edges.
+    pub const EDGE_CELL: u32 = 8;
+    /// A cell wholly inside a polygon, with no active edge.
+    pub const INSIDE_CELL: u32 = 2;
+    /// A cell with visible pixels, to the colour units and the VB.
+    pub const VISIBLE_CELL: u32 = 10;
+    /// A column of last-level cells' background pass, whatever is drawn.
+    pub const BACKGROUND_COLUMN: u64 = 60;
 }
 
 impl VideoProcessor {
@@ -99,6 +120,7 @@ impl VideoProcessor {
             gq,
             counters,
             textures: Arc::default(),
+            column_work: vec![0; width.div_ceil(spp::CELL_SIDE) as usize],
         }
     }
 
@@ -138,32 +160,39 @@ impl VideoProcessor {
         // The last polygon seen and its one colour, if it has one
         // ([`ColorComputers::flat_color`]).
         let mut flat: Option<(usize, Option<Vec3>)> = None;
-        Self::run::<STATS>(&mut self.gq, &mut self.spp, &mut self.counters, frame, &mut |poly, vis| match poly {
-            Some(p) => {
-                let poly = &frame.polygons[p];
-                // A polygon of one colour goes to the VB as the background does,
-                // with no work per pixel in the CC. (Not when counting: the counters
-                // count the CC's pixels as the machine colours them.)
-                if !STATS {
-                    let color = match flat {
-                        Some((q, color)) if q == p => color,
-                        _ => {
-                            let color = cc.flat_color(poly);
-                            flat = Some((p, color));
-                            color
+        Self::run::<STATS>(
+            &mut self.gq,
+            &mut self.spp,
+            &mut self.counters,
+            &mut self.column_work,
+            frame,
+            &mut |poly, vis| match poly {
+                Some(p) => {
+                    let poly = &frame.polygons[p];
+                    // A polygon of one colour goes to the VB as the background does,
+                    // with no work per pixel in the CC. (Not when counting: the counters
+                    // count the CC's pixels as the machine colours them.)
+                    if !STATS {
+                        let color = match flat {
+                            Some((q, color)) if q == p => color,
+                            _ => {
+                                let color = cc.flat_color(poly);
+                                flat = Some((p, color));
+                                color
+                            }
+                        };
+                        if let Some(color) = color {
+                            vb.accumulate_flat(vis, color);
+                            return;
                         }
-                    };
-                    if let Some(color) = color {
-                        vb.accumulate_flat(vis, color);
-                        return;
                     }
+                    cc.shade::<STATS>(poly, vis, &mut colors, &mut inner);
+                    // The VB's writes are counted once per frame (`run`).
+                    vb.accumulate(vis, &colors);
                 }
-                cc.shade::<STATS>(poly, vis, &mut colors, &mut inner);
-                // The VB's writes are counted once per frame (`run`).
-                vb.accumulate(vis, &colors);
-            }
-            None => vb.accumulate_flat(vis, frame.background),
-        });
+                None => vb.accumulate_flat(vis, frame.background),
+            },
+        );
         if STATS {
             self.counters.add(&inner);
         }
@@ -173,9 +202,16 @@ impl VideoProcessor {
     /// units and the video buffer left out: for timing the stages apart.
     pub fn raster(&mut self, frame: &FrameList) -> u64 {
         let mut visible = 0u64;
-        Self::run::<false>(&mut self.gq, &mut self.spp, &mut self.counters, frame, &mut |_, vis| {
-            visible += u64::from(vis.any());
-        });
+        Self::run::<false>(
+            &mut self.gq,
+            &mut self.spp,
+            &mut self.counters,
+            &mut self.column_work,
+            frame,
+            &mut |_, vis| {
+                visible += u64::from(vis.any());
+            },
+        );
         visible
     }
 
@@ -187,17 +223,24 @@ impl VideoProcessor {
         let (w, h) = (frame.width as usize, frame.height as usize);
         let mut owner = vec![u32::MAX; w * h * 16];
         let mut counters = Counters::new(self.gq.root_level);
-        Self::run::<false>(&mut self.gq, &mut self.spp, &mut counters, frame, &mut |poly, vis| {
-            let Some(p) = poly else { return };
-            for (i, &set) in vis.sets.iter().enumerate() {
-                let (x, y) = (vis.px as usize + (i & 3), vis.py as usize + (i >> 2));
-                for sub in 0..16 {
-                    if set >> sub & 1 == 1 {
-                        owner[(y * w + x) * 16 + sub] = p as u32;
+        Self::run::<false>(
+            &mut self.gq,
+            &mut self.spp,
+            &mut counters,
+            &mut self.column_work,
+            frame,
+            &mut |poly, vis| {
+                let Some(p) = poly else { return };
+                for (i, &set) in vis.sets.iter().enumerate() {
+                    let (x, y) = (vis.px as usize + (i & 3), vis.py as usize + (i >> 2));
+                    for sub in 0..16 {
+                        if set >> sub & 1 == 1 {
+                            owner[(y * w + x) * 16 + sub] = p as u32;
+                        }
                     }
                 }
-            }
-        });
+            },
+        );
         owner
     }
 
@@ -239,11 +282,14 @@ impl VideoProcessor {
         gq: &mut CellProcessors,
         spp: &mut SubpixelProcessors,
         counters: &mut Counters,
+        work: &mut [u32],
         frame: &FrameList,
         sink: &mut impl FnMut(Option<usize>, &spp::Visible),
     ) {
         gq.clear();
         spp.clear();
+        work.fill(0);
+        let share = spp.share;
         *counters = Counters::new(gq.root_level);
         if STATS {
             counters.polygons = frame.polygons.len() as u64;
@@ -258,6 +304,16 @@ impl VideoProcessor {
             let bbox = bbox(frame.vertices_of(poly), frame.width, frame.height);
             if bbox[0] >= bbox[1] || bbox[2] >= bbox[3] {
                 continue;
+            }
+            if !STATS && share.strip != gq::Share::ALL_COLUMNS {
+                // The GQ never leaves the polygon's starting cell: a polygon whose
+                // starting cell is outside this VP's strip would find every cell
+                // pre-masked (with counting on, it is counted as the machine does).
+                let start = gq.bounding_cell(bbox);
+                let side = gq.side(start.level);
+                if !share.meets_columns(start.x * side, (start.x + 1) * side) {
+                    continue;
+                }
             }
             let opaque = poly.transparency == 0;
             let gp = GqPolygon { edges, opaque, bbox };
@@ -276,7 +332,10 @@ impl VideoProcessor {
                         if hierarchical && !opaque && vis.covered {
                             covered_cells.push(gq::morton(px / spp::CELL_SIDE, py / spp::CELL_SIDE));
                         }
+                        let column = &mut work[(px / spp::CELL_SIDE) as usize];
+                        *column += work::INSIDE_CELL;
                         if vis.any() {
+                            *column += work::VISIBLE_CELL;
                             sink(Some(index), &vis);
                         }
                     }
@@ -286,7 +345,10 @@ impl VideoProcessor {
                 if hierarchical && vis.covered {
                     covered_cells.push(gq::morton(vis.px / spp::CELL_SIDE, vis.py / spp::CELL_SIDE));
                 }
+                let column = &mut work[(frag.px / spp::CELL_SIDE) as usize];
+                *column += work::EDGE_CELL;
                 if vis.any() {
+                    *column += work::VISIBLE_CELL;
                     sink(Some(index), &vis);
                 }
             };
@@ -374,8 +436,14 @@ fn share_cells(
         (stride.max(rows).max(1), 1, 1)
     };
     let (i, j) = if whole_cells { (share.i as usize, share.j as usize) } else { (0, 0) };
-    (0..rows).filter(move |cy| (cy / side) % q == j).map(move |cy| {
-        let runs = (i * side..stride).step_by(side * p).map(move |x0| x0..(x0 + side).min(stride));
+    // A strip's cell columns (whole cells: its borders are multiples of a cell).
+    let (s0, s1) = share.strip;
+    let (s0, s1) = ((s0 / spp::CELL_SIDE) as usize, s1.div_ceil(spp::CELL_SIDE).min(stride as u32) as usize);
+    (0..rows).filter(move |&cy| (cy / side) % q == j).map(move |cy| {
+        let runs = (i * side..stride)
+            .step_by(side * p)
+            .map(move |x0| x0.max(s0)..(x0 + side).min(stride).min(s1))
+            .filter(|run| !run.is_empty());
         (cy, runs)
     })
 }
@@ -409,7 +477,7 @@ mod tests {
         {
             for j in 0..q {
                 for i in 0..p {
-                    let share = gq::Share { tile, p, q, i, j };
+                    let share = gq::Share::interleaved(tile, p, q, i, j);
                     let got: Vec<(usize, usize)> = share_cells(&share, stride, rows)
                         .flat_map(|(cy, runs)| runs.flatten().map(move |cx| (cx, cy)))
                         .collect();

@@ -168,30 +168,61 @@ impl SubpixelProcessors {
     /// [`Self::background_done`]) the memory is already clear and nothing is copied
     /// (4 MiB a frame at 1920 x 1080, per VP of a matrix).
     pub fn clear(&mut self) {
-        if self.cleared_share != Some(self.share) {
-            self.cleared = (0..self.rows * self.stride)
-                .map(|c| {
-                    let (cx, cy) = ((c % self.stride) as u32, (c / self.stride) as u32);
-                    let mut m = [0u16; 16];
-                    for (i, px) in m.iter_mut().enumerate() {
-                        let x = cx * CELL_SIDE + (i as u32 & 3);
-                        let y = cy * CELL_SIDE + (i as u32 >> 2);
-                        if x >= self.width || y >= self.height || !self.share.owns_pixel(x, y) {
-                            *px = FULL;
+        match self.cleared_share {
+            Some(old) if old == self.share => {}
+            Some(old) if Share { strip: self.share.strip, ..old } == self.share => {
+                // Only the strip moved (a strip matrix evening out its VPs' work):
+                // the cell columns whose pixels changed hands are made again.
+                let (a, b) = (old.strip, self.share.strip);
+                let inside = |strip: (u32, u32), x: u32| x >= strip.0 && x < strip.1;
+                let changed: Vec<usize> = (0..self.stride)
+                    .filter(|&cx| {
+                        (cx as u32 * CELL_SIDE..(cx as u32 + 1) * CELL_SIDE).any(|x| inside(a, x) != inside(b, x))
+                    })
+                    .collect();
+                let open = |m: &[u16; 16]| m.iter().filter(|&&m| m == 0).count() as u64;
+                for cy in 0..self.rows {
+                    for &cx in &changed {
+                        let c = cy * self.stride + cx;
+                        let cell = self.cleared_cell(cx as u32, cy as u32);
+                        self.open_pixels = self.open_pixels - open(&self.cleared[c]) + open(&cell);
+                        self.cleared[c] = cell;
+                        if self.clean {
+                            // The rest of the memory is in its cleared state already.
+                            self.masks[c] = cell;
                         }
                     }
-                    m
-                })
-                .collect();
-            self.cleared_share = Some(self.share);
-            self.open_pixels = self.cleared.iter().flatten().filter(|&&m| m == 0).count() as u64;
-            self.clean = false;
+                }
+                self.cleared_share = Some(self.share);
+            }
+            _ => {
+                self.cleared = (0..self.rows * self.stride)
+                    .map(|c| self.cleared_cell((c % self.stride) as u32, (c / self.stride) as u32))
+                    .collect();
+                self.cleared_share = Some(self.share);
+                self.open_pixels = self.cleared.iter().flatten().filter(|&&m| m == 0).count() as u64;
+                self.clean = false;
+            }
         }
         if !self.clean {
             self.masks.copy_from_slice(&self.cleared);
         }
         // From here on the frame changes the memory.
         self.clean = false;
+    }
+
+    /// Cell `(cx, cy)` as a frame starts: its pixels off the screen or outside the
+    /// share pre-masked (all 16 subpixels set).
+    fn cleared_cell(&self, cx: u32, cy: u32) -> [u16; 16] {
+        let mut m = [0u16; 16];
+        for (i, px) in m.iter_mut().enumerate() {
+            let x = cx * CELL_SIDE + (i as u32 & 3);
+            let y = cy * CELL_SIDE + (i as u32 >> 2);
+            if x >= self.width || y >= self.height || !self.share.owns_pixel(x, y) {
+                *px = FULL;
+            }
+        }
+        m
     }
 
     /// Says that [`Self::background`] has visited every cell of the share since

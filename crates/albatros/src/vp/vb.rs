@@ -1095,40 +1095,67 @@ impl VideoBuffer {
     /// `image`, in bands of rows on the current rayon pool, reading each tile from the
     /// memory of the VP that owns it: the bytes of [`Self::copy_shares_from`] then
     /// [`Self::read_out_parallel_into`], without the copy (4 MiB a frame at 1920 x
-    /// 1080). Only for the 8-bit log code with tiles of whole F2 runs, where it
-    /// returns `true`; otherwise it does nothing and returns `false`. `parts`: the
-    /// buffers (same size and mode) with their shares, which cover the screen and do
-    /// not overlap.
+    /// 1080). Only for the 8-bit log code with tiles of whole F2 runs (or of whole
+    /// rows), each tile owned by exactly one share, where it returns `true`;
+    /// otherwise it does nothing and returns `false`. `parts`: the buffers (same
+    /// size and mode) with their shares, of one tile side.
     pub fn read_out_shares_into(parts: &[(&VideoBuffer, &Share)], opts: &Readout, image: &mut Image) -> bool {
         use rayon::prelude::*;
         let Some(&(first, first_share)) = parts.first() else { return false };
-        let (p, q, tile) = (first_share.p as usize, first_share.q as usize, first_share.tile as usize);
+        let tile = first_share.tile as usize;
         let (w, h) = (first.width as usize, first.height as usize);
-        // The memory of the VP of tile column `i`, row `j`.
-        let mut owners: Vec<Option<&[Word8]>> = vec![None; p * q];
+        // The grid of the shares' tiles: rows of `tile` pixels, and columns of
+        // `tile` pixels, or the whole width when the matrix has one column.
+        let column =
+            if parts.iter().all(|(_, share)| share.p == 1 && share.strip == Share::ALL_COLUMNS) { w } else { tile };
+        if !tile.is_power_of_two() || (column < w && column % LOG8_RUN != 0) || w == 0 || h == 0 {
+            return false;
+        }
+        let mut memories = Vec::with_capacity(parts.len());
         for (vb, share) in parts {
-            let same = (vb.width, vb.height) == (first.width, first.height)
-                && (share.p, share.q, share.tile) == (first_share.p, first_share.q, first_share.tile);
             match &vb.memory {
-                Memory::Log8 { codes, .. } if same && (share.i as usize) < p && (share.j as usize) < q => {
-                    owners[share.j as usize * p + share.i as usize] = Some(codes)
+                Memory::Log8 { codes, .. }
+                    if (vb.width, vb.height) == (first.width, first.height) && share.tile == first_share.tile =>
+                {
+                    memories.push(codes.as_slice())
                 }
                 _ => return false,
             }
         }
         let Memory::Log8 { scale, .. } = &first.memory else { return false };
-        let Some(owners) = owners.into_iter().collect::<Option<Vec<_>>>() else { return false };
-        if tile % LOG8_RUN != 0 || w == 0 || h == 0 {
-            return false;
+        // Per tile, the VP that owns it and the end of the run of tiles of the row
+        // that VP owns from there (P3's interleave: the tile; a strip: the strip), looked
+        // up once a frame: a segment then costs a shift, a division by a constant
+        // and a read.
+        let shift = tile.trailing_zeros();
+        let (tiles_w, tiles_h) = (w.div_ceil(column), h.div_ceil(tile));
+        let mut owner = vec![(u32::MAX, 0u32); tiles_w * tiles_h];
+        for ty in 0..tiles_h {
+            let row = &mut owner[ty * tiles_w..][..tiles_w];
+            for (tx, o) in row.iter_mut().enumerate() {
+                let (x, y) = ((tx * column) as u32, (ty * tile) as u32);
+                let mut owners = parts.iter().enumerate().filter(|(_, (_, share))| share.owns_pixel(x, y));
+                match (owners.next(), owners.next()) {
+                    (Some((k, _)), None) => o.0 = k as u32,
+                    _ => return false,
+                }
+            }
+            let mut end = tiles_w;
+            for tx in (0..tiles_w).rev() {
+                if tx + 1 < tiles_w && row[tx + 1].0 != row[tx].0 {
+                    end = tx + 1;
+                }
+                row[tx].1 = ((end * column).min(w)) as u32;
+            }
         }
+        // Pixels `x0..` of row `y` to the end of their VP's run of tiles.
+        let segment = |y: usize, x0: usize| {
+            let (k, end) = owner[(y >> shift) * tiles_w + x0 / column];
+            &memories[k as usize][y * w + x0..y * w + end as usize]
+        };
         let pairs = scale.pair_means.as_ref().expect("the 8-bit scale has the pair table");
         let table = first.gamma_table(opts);
         let table: &[u8; LOG8_ADDRESSES] = table.as_slice().try_into().expect("the 8-bit gamma table");
-        // Pixels `x0..` of row `y` to the end of their tile, from its VP.
-        let segment = |y: usize, x0: usize| {
-            let codes = owners[(y / tile) % q * p + (x0 / tile) % p];
-            &codes[y * w + x0..y * w + (x0 / tile * tile + tile).min(w)]
-        };
         image.width = first.width;
         image.height = first.height;
         // Every byte is written below; `resize` only zeroes a first or larger frame.
@@ -1137,7 +1164,7 @@ impl VideoBuffer {
         image.pixels.par_chunks_mut(band * w * 3).enumerate().for_each(|(k, out)| {
             let y0 = k * band;
             let rows = y0..(y0 + band).min(h);
-            read_out_log8_from(w, h, tile, &segment, opts.filter, pairs, table, rows, out);
+            read_out_log8_from(w, h, &segment, opts.filter, pairs, table, rows, out);
         });
         true
     }
@@ -1749,10 +1776,13 @@ fn copy_share_rows<T: Copy>(dst: &mut [T], src: &[T], width: usize, rows: std::o
             continue;
         }
         let (d, s) = (&mut dst[(y - first) * width..][..width], &src[y * width..][..width]);
+        let strip = (share.strip.0 as usize).min(width)..(share.strip.1 as usize).min(width);
         let mut x = share.i as usize * tile;
         while x < width {
-            let end = (x + tile).min(width);
-            d[x..end].copy_from_slice(&s[x..end]);
+            let run = x.max(strip.start)..(x + tile).min(width).min(strip.end);
+            if !run.is_empty() {
+                d[run.clone()].copy_from_slice(&s[run]);
+            }
             x += tile * share.p as usize;
         }
     }
@@ -1973,19 +2003,18 @@ fn read_out_log8(
     out: &mut [u8],
 ) {
     let segment = |y: usize, x0: usize| &codes[y * w + x0..(y + 1) * w];
-    read_out_log8_from(w, h, w.max(1), &segment, filter, pairs, table, rows, out);
+    read_out_log8_from(w, h, &segment, filter, pairs, table, rows, out);
 }
 
 /// [`read_out_log8`] with row `y` read from `segment(y, x0)`: the words of pixels
-/// `x0..` of row `y` up to the next multiple of `seg` (or the row's end), `x0` a
-/// multiple of `seg`, `seg` a multiple of [`LOG8_RUN`] or the whole width. A matrix's
-/// readout reads each tile's pixels from the VP that owns it, with no copy of the
-/// memories into one.
+/// `x0..` of row `y` up to the end of a segment (at least one pixel; segments start
+/// at multiples of [`LOG8_RUN`] or at 0 and end there or at the row's end). A
+/// matrix's readout reads each tile's pixels from the VP that owns it, with no copy
+/// of the memories into one.
 #[allow(clippy::too_many_arguments, reason = "the readout's registers, passed as they are")]
 fn read_out_log8_from<'a>(
     w: usize,
     h: usize,
-    seg: usize,
     segment: &impl Fn(usize, usize) -> &'a [Word8],
     filter: bool,
     pairs: &PairMeans,
@@ -2010,21 +2039,26 @@ fn read_out_log8_from<'a>(
     let mut flat_out: (Line8, [u64; 3]) = (flat_mean.1, pattern(pixel(flat_mean.1)));
     for (y, out_row) in rows.zip(out.chunks_exact_mut(3 * w)) {
         if !filter {
-            for x0 in (0..w).step_by(seg) {
+            let mut x0 = 0;
+            while x0 < w {
                 let row = segment(y, x0);
                 for (px, &word) in out_row[3 * x0..].chunks_exact_mut(3).zip(row) {
                     px.copy_from_slice(&pixel(pairs.mean_words(word, word)));
                 }
+                x0 += row.len();
             }
             continue;
         }
         let below_y = (y + 1).min(h - 1);
-        // Pass 1: half sums of vertically adjacent pixels, a segment at a time.
-        for x0 in (0..w).step_by(seg) {
+        // Pass 1: half sums of vertically adjacent pixels, a segment at a time (the
+        // shorter of the row's and the row below's).
+        let mut x0 = 0;
+        while x0 < w {
             let (row, below) = (segment(y, x0), segment(below_y, x0));
             let n = row.len().min(below.len());
             let (line, flat_runs) = (&mut line[x0..x0 + n], &mut flat_runs[x0 / LOG8_RUN..]);
             read_out_log8_pass1(line, &row[..n], &below[..n], flat_runs, &mut flat_mean, pairs);
+            x0 += n;
         }
         // Pass 2: half sums of horizontally adjacent ones, a run at a time; the
         // last column's own value stands in for its right neighbour, and its mean

@@ -454,6 +454,27 @@ fn same_bytes_whatever_the_matrix_size_or_thread_count() {
                 }
             }
         }
+        // Strip matrices: the strips move after every frame (even widths first).
+        for (n, threads) in [(2, 2), (3, 2), (5, 3)] {
+            for stats in [true, false] {
+                let config = VpConfig { stats, ..VpConfig::default() };
+                let mut m = Matrix::striped(200, 150, config, n, threads).unwrap();
+                m.set_textures(maps.clone());
+                for k in 0..3 {
+                    let strips = m.strips();
+                    let got = m.render(&frame);
+                    assert!(
+                        got == want,
+                        "{name}: {n} strips {strips:?} (frame {k}), {threads} threads changed the image"
+                    );
+                    if stats {
+                        let c = m.counters();
+                        assert_eq!(c.spp.pixels_visible, single.counters.spp.pixels_visible, "{name} {n} strips");
+                        assert_eq!(c.color, single.counters.color, "{name} {n} strips");
+                    }
+                }
+            }
+        }
         // One VP without counting: the same image.
         let mut fast = VideoProcessor::new(200, 150, VpConfig::default());
         fast.set_textures(maps.clone());
@@ -495,14 +516,17 @@ fn a_reused_video_processor_or_matrix_keeps_nothing_of_the_last_frame() {
         let config = VpConfig { vb: vb.parse().unwrap(), ..VpConfig::default() };
         let mut reused = VideoProcessor::new(w, h, config);
         let mut matrix = Matrix::new(w, h, config, 2, 1, 16, 2).unwrap();
+        let mut strips = Matrix::striped(w, h, config, 3, 2).unwrap();
         for (k, (frame, maps)) in frames.iter().enumerate() {
             let mut fresh = VideoProcessor::new(w, h, config);
             fresh.set_textures(maps.clone());
             reused.set_textures(maps.clone());
             matrix.set_textures(maps.clone());
+            strips.set_textures(maps.clone());
             let want = fresh.render(frame);
             assert!(reused.render(frame) == want, "{vb}: frame {k} on a reused VP differs from a fresh VP");
             assert!(matrix.render(frame) == want, "{vb}: frame {k} on a reused matrix differs from a fresh VP");
+            assert!(strips.render(frame) == want, "{vb}: frame {k} on a reused strip matrix differs from a fresh VP");
         }
     }
 }
@@ -582,4 +606,47 @@ fn counting_and_plain_descents_give_the_same_fragments() {
             }
         }
     }
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(24))]
+    /// A strip matrix gives one VP's bytes whatever its strips, moved from frame to
+    /// frame (the mask memories' pre-masked cells made again column by column).
+    #[test]
+    fn same_bytes_whatever_the_strips(
+        borders in proptest::collection::vec(proptest::collection::vec(0u32..=13, 2), 3),
+        scene in proptest::sample::select(vec!["default", "city", "terrain", "rombm"]),
+    ) {
+        use albatros::matrix::{Matrix, STRIP_STEP};
+        let (w, h) = (200, 120);
+        let mut s = albatros::db::builtin::scene(scene).unwrap();
+        s.screen = albatros::db::Screen { width: w, height: h };
+        let db = albatros::gp::Database::new(s);
+        let (frame, _) = albatros::gp::frame_of_scene(&db, &albatros::gp::GpConfig::default());
+        let maps = std::sync::Arc::new(albatros::vp::texture::TextureMaps::from_scene(&db.scene, std::path::Path::new("")).unwrap());
+        let mut one = VideoProcessor::new(w, h, VpConfig::default());
+        one.set_textures(maps.clone());
+        let want = one.render(&frame);
+        let mut m = Matrix::striped(w, h, VpConfig::default(), 3, 2).unwrap();
+        m.set_textures(maps);
+        for b in &borders {
+            // Three strips: borders at two multiples of the step, in order.
+            let (a, c) = (b[0].min(b[1]) * STRIP_STEP, b[0].max(b[1]) * STRIP_STEP);
+            let strips = [(0, a.min(w)), (a.min(w), c.min(w)), (c.min(w), w)];
+            m.set_strips(&strips).unwrap();
+            proptest::prop_assert!(m.render(&frame) == want, "{}: strips {:?} changed the image", scene, strips);
+        }
+    }
+}
+
+#[test]
+fn strips_that_do_not_suit_the_matrix_are_refused() {
+    use albatros::matrix::Matrix;
+    let mut m = Matrix::striped(200, 120, VpConfig::default(), 2, 1).unwrap();
+    for bad in [vec![(0, 100)], vec![(0, 96), (90, 200)], vec![(0, 90), (90, 200)], vec![(0, 96), (96, 150)]] {
+        assert!(m.set_strips(&bad).is_err(), "{bad:?} accepted");
+    }
+    assert!(m.set_strips(&[(0, 96), (96, 200)]).is_ok());
+    let mut interleaved = Matrix::new(200, 120, VpConfig::default(), 2, 1, 16, 1).unwrap();
+    assert!(interleaved.set_strips(&[(0, 96), (96, 200)]).is_err());
 }
