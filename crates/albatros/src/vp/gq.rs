@@ -670,8 +670,8 @@ impl CellProcessors {
         let (lo, hi) = self.lists.split_at_mut(k + 1);
         let active = &lo[k][list..list + len];
         let children = &mut hi[0][..4 * stride];
-        // The children's list lengths; child `c`'s list starts at `c * stride`.
-        let mut lens = [0usize; 4];
+        // Where the children's lists end; child `c`'s starts at `c * stride`.
+        let mut ends = [0, stride, 2 * stride, 3 * stride];
         // CI in bits 0-3, CRI in bits 4-7, ANDed over the edges.
         let mut codes_all = 0xFFu32;
         let open = u32::from(!m & 0xF);
@@ -686,10 +686,9 @@ impl CellProcessors {
                 // across them (its V origin half a cell further or not).
                 let (along, across) = if a.kind & KIND_VERTICAL != 0 { (c >> 1, c & 1) } else { (c & 1, c >> 1) };
                 let (v1, v2) = if along == 0 { (a.v1.0, code.vm) } else { (code.vm, a.v2.0) };
-                let shift = half * across as i64;
-                children[c * stride + lens[c]] =
-                    ActiveEdge { v1: EdgeCoord(v1 - shift), v2: EdgeCoord(v2 - shift), ..*a };
-                lens[c] += 1;
+                let shift = if across != 0 { half } else { 0 };
+                children[ends[c]] = ActiveEdge { v1: EdgeCoord(v1 - shift), v2: EdgeCoord(v2 - shift), ..*a };
+                ends[c] += 1;
             }
         }
         let (ci_all, cri_all) = (codes_all as u8 & 0xF, (codes_all >> 4) as u8 & 0xF);
@@ -730,17 +729,25 @@ impl CellProcessors {
                 }
                 continue;
             }
-            let start = c as usize * stride;
-            let n = lens[c as usize];
+            let (start, end) = (c as usize * stride, ends[c as usize]);
             if child_level == self.root_level {
                 spp(Fragment {
                     px: child_cell.x * 4,
                     py: child_cell.y * 4,
-                    active: &self.lists[child_level as usize][start..start + n],
+                    active: &self.lists[child_level as usize][start..end],
                     cells: ONE_CELL,
                 });
             } else {
-                self.split::<STATS, FILL>(child_cell, 4 * z + c as usize, start, n, half >> 1, poly, counters, spp);
+                self.split::<STATS, FILL>(
+                    child_cell,
+                    4 * z + c as usize,
+                    start,
+                    end - start,
+                    half >> 1,
+                    poly,
+                    counters,
+                    spp,
+                );
             }
         }
     }
@@ -798,11 +805,14 @@ fn child_codes(d1: i64, d2: i64, half: i64, kind: u32) -> ChildCodes {
     let dm = (d1 + d2) >> 1;
     let (lo0, hi0) = (d1.min(dm), d1.max(dm));
     let (lo1, hi1) = (dm.min(d2), dm.max(d2));
-    let before0 = u32::from(hi0 <= 0) + u32::from(hi0 <= half);
-    let before1 = u32::from(hi1 <= 0) + u32::from(hi1 <= half);
-    let after0 = u32::from(lo0 >= half) + u32::from(lo0 >= 2 * half);
-    let after1 = u32::from(lo1 >= half) + u32::from(lo1 >= 2 * half);
-    let address = (before0 | before1 << 2 | after0 << 4 | after1 << 6 | kind) as usize & (CHILD_CODES.len() - 1);
+    // `neg(v)`: 1 when `v < 0`, by its sign bit (|V| < 2^46: no overflow).
+    let neg = |v: i64| (v as u64 >> 63) as u32;
+    let before0 = neg(hi0 - 1) + neg(hi0 - (half + 1));
+    let before1 = neg(hi1 - 1) + neg(hi1 - (half + 1));
+    // Two less the "at or beyond" codes.
+    let short0 = neg(lo0 - half) + neg(lo0 - 2 * half);
+    let short1 = neg(lo1 - half) + neg(lo1 - 2 * half);
+    let address = (before0 | before1 << 2 | short0 << 4 | short1 << 6 | kind) as usize & (CHILD_CODES.len() - 1);
     ChildCodes { codes: u32::from(CHILD_CODES[address]), vm: dm }
 }
 
@@ -811,7 +821,7 @@ fn child_codes(d1: i64, d2: i64, half: i64, kind: u32) -> ChildCodes {
 /// border" of halves 0 and 1 of the stretch; `kind` [`KIND_VERTICAL`] and [`KIND_LR`]),
 /// CI in bits 0-3, CRI in bits 4-7, `CRI & !CI` in bits 8-11. Addresses with a code 3
 /// never occur.
-static CHILD_CODES: [u16; 1024] = child_code_table();
+const CHILD_CODES: [u16; 1024] = child_code_table();
 
 /// Builds [`CHILD_CODES`]: the bits the plain `edge_code` forms, by the same rule.
 const fn child_code_table() -> [u16; 1024] {
@@ -819,7 +829,11 @@ const fn child_code_table() -> [u16; 1024] {
     let mut address = 0;
     while address < 1024 {
         let (b0, b1) = (address & 3, address >> 2 & 3);
-        let (a0, a1) = (address >> 4 & 3, address >> 6 & 3);
+        // The address holds two less the "at or beyond" codes.
+        // (3 never occurs: read as 2.)
+        let (s0, s1) = (address >> 4 & 3, address >> 6 & 3);
+        let a0 = if s0 > 2 { 0 } else { 2 - s0 };
+        let a1 = if s1 > 2 { 0 } else { 2 - s1 };
         let vertical = address as u32 & KIND_VERTICAL != 0;
         let lr = address as u32 & KIND_LR != 0;
         // Child bit of (along, across) = (0, 1) and (1, 0), as in `edge_code`.
