@@ -678,6 +678,10 @@ impl CellProcessors {
         for a in active {
             let code = child_codes(a.v1.0, a.v2.0, half, a.kind);
             codes_all &= code.codes;
+            if !STATS && codes_all >> 4 & open == 0 {
+                // Every open child is OUT: no child to descend into, none IN.
+                break;
+            }
             let mut crossed = code.codes >> 8 & open;
             while crossed != 0 {
                 let c = crossed.trailing_zeros() as usize;
@@ -831,9 +835,7 @@ const fn child_code_table() -> [u16; 1024] {
         let (b0, b1) = (address & 3, address >> 2 & 3);
         // The address holds two less the "at or beyond" codes.
         // (3 never occurs: read as 2.)
-        let (s0, s1) = (address >> 4 & 3, address >> 6 & 3);
-        let a0 = if s0 > 2 { 0 } else { 2 - s0 };
-        let a1 = if s1 > 2 { 0 } else { 2 - s1 };
+        let (a0, a1) = (2usize.saturating_sub(address >> 4 & 3), 2usize.saturating_sub(address >> 6 & 3));
         let vertical = address as u32 & KIND_VERTICAL != 0;
         let lr = address as u32 & KIND_LR != 0;
         // Child bit of (along, across) = (0, 1) and (1, 0), as in `edge_code`.
@@ -913,6 +915,7 @@ fn record_children(rec: &mut Vec<CellRecord>, cell: Cell, cri_all: u8, m: u8, ci
 
 #[cfg(test)]
 mod tests {
+    use super::super::edge::{ScreenFx, SNAP_ONE};
     use super::*;
 
     /// Z order: a bijection of the square, a cell's four children one nibble of the
@@ -1038,6 +1041,116 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The plain descent, the GQ's definition before its optimisations: lists in
+    /// vectors, pushed per crossed child, the codes by [`edge_code`] (tested against
+    /// the ROM), every edge to the end, no mask; the last-level cells with their
+    /// active edges, in the descent's order.
+    fn plain_descent(root_level: u32, cell: Cell, active: Vec<ActiveEdge>, out: &mut Vec<(u32, u32, Vec<ActiveEdge>)>) {
+        if cell.level == root_level {
+            out.push((cell.x * 4, cell.y * 4, active));
+            return;
+        }
+        let half = 1i64 << (EDGE_FRAC_BITS + (root_level + 1 - cell.level));
+        let mut children: [Vec<ActiveEdge>; 4] = Default::default();
+        let mut cri_all = 0xF;
+        for a in &active {
+            let code = edge_code(a.v1.0, a.v2.0, half, a.vertical(), a.lr());
+            cri_all &= code.cri;
+            for (c, child) in children.iter_mut().enumerate() {
+                if (code.cri & !code.ci) >> c & 1 == 1 {
+                    let (along, across) = if a.vertical() { (c >> 1, c & 1) } else { (c & 1, c >> 1) };
+                    let (v1, v2) = if along == 0 { (a.v1.0, code.vm) } else { (code.vm, a.v2.0) };
+                    let shift = half * across as i64;
+                    child.push(ActiveEdge { v1: EdgeCoord(v1 - shift), v2: EdgeCoord(v2 - shift), ..*a });
+                }
+            }
+        }
+        for (c, child) in children.into_iter().enumerate() {
+            if cri_all >> c & 1 == 1 {
+                let (x, y) = (cell.x * 2 + (c as u32 & 1), cell.y * 2 + (c as u32 >> 1));
+                plain_descent(root_level, Cell { level: cell.level + 1, x, y }, child, out);
+            }
+        }
+    }
+
+    /// The descent (lists written by index, codes by the table, the split left when
+    /// every child is OUT) reaches the cells the plain descent does, with the same
+    /// active edges, in the same order: random triangles, slivers and tiny ones
+    /// among them, on a square screen (no cell pre-masked), no mask in use.
+    #[test]
+    fn descent_is_the_plain_descent() {
+        const SIDE: u32 = 256;
+        let mut gq = CellProcessors::new(SIDE, SIDE, MaskLevels::NONE);
+        let root_side = gq.side(0);
+        let mut state = 0x2545_F491_4F6C_DD1D_u64;
+        let mut next = move |n: u64| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state % n
+        };
+        let snap = i64::from(SNAP_ONE);
+        let mut checked = 0;
+        for k in 0..3000 {
+            // Vertices in snapped units; a third of the triangles slivers (the third
+            // vertex near the first two's line), some tiny.
+            let scale = if k % 5 == 0 { 8 * snap as u64 } else { u64::from(SIDE) * snap as u64 };
+            let (ox, oy) = (
+                next(u64::from(SIDE) * snap as u64 - scale + 1) as i64,
+                next(u64::from(SIDE) * snap as u64 - scale + 1) as i64,
+            );
+            let mut p = [(0i64, 0i64); 3];
+            for v in &mut p[..2] {
+                *v = (ox + next(scale) as i64, oy + next(scale) as i64);
+            }
+            p[2] = if k % 3 == 0 {
+                let t = next(1024) as i64;
+                let (x, y) = (p[0].0 + (p[1].0 - p[0].0) * t / 1024, p[0].1 + (p[1].1 - p[0].1) * t / 1024);
+                (
+                    (x + next(65) as i64 - 32).clamp(0, (SIDE as i64) * snap - 1),
+                    (y + next(65) as i64 - 32).clamp(0, (SIDE as i64) * snap - 1),
+                )
+            } else {
+                (ox + next(scale) as i64, oy + next(scale) as i64)
+            };
+            let cross = (p[1].0 - p[0].0) * (p[2].1 - p[0].1) - (p[1].1 - p[0].1) * (p[2].0 - p[0].0);
+            if cross == 0 {
+                continue;
+            }
+            let fx = |v: (i64, i64)| (ScreenFx(v.0 as i32), ScreenFx(v.1 as i32));
+            let Some(edges) = (0..3)
+                .map(|i| EdgeCode::new(fx(p[i]), fx(p[(i + 1) % 3]), cross > 0, root_side))
+                .collect::<Option<Vec<_>>>()
+            else {
+                continue;
+            };
+            // The box as the VP forms it: a pixel wider each way, inside the screen.
+            let lo = |v: i64| ((v.div_euclid(snap) - 1).max(0) as u32).min(SIDE);
+            let hi = |v: i64| ((v + snap - 1).div_euclid(snap) + 1).clamp(0, i64::from(SIDE)) as u32;
+            let (xs, ys) = (p.map(|v| v.0), p.map(|v| v.1));
+            let (x0, x1) = (*xs.iter().min().unwrap(), *xs.iter().max().unwrap());
+            let (y0, y1) = (*ys.iter().min().unwrap(), *ys.iter().max().unwrap());
+            let bbox = [lo(x0), hi(x1), lo(y0), hi(y1)];
+            let poly = GqPolygon { edges: &edges, opaque: false, bbox };
+            gq.clear();
+            let mut got = Vec::new();
+            let mut counters = Counters::new(gq.root_level);
+            gq.descend::<false>(&poly, &mut counters, &mut |f: Fragment| got.push((f.px, f.py, f.active.to_vec())));
+            let start = gq.bounding_cell(bbox);
+            let side = i64::from(gq.side(start.level));
+            let active = (0..3)
+                .map(|i| {
+                    ActiveEdge::at_cell(i as u32, &edges[i], i64::from(start.x) * side, i64::from(start.y) * side, side)
+                })
+                .collect();
+            let mut want = Vec::new();
+            plain_descent(gq.root_level, start, active, &mut want);
+            assert_eq!(got, want, "triangle {p:?}");
+            checked += 1;
+        }
+        assert!(checked > 2500);
     }
 
     proptest::proptest! {
