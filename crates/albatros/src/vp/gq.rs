@@ -345,13 +345,14 @@ pub struct CellProcessors {
     memories: Vec<MaskMemory>,
     /// The share the memories' cleared states were made for.
     cleared_share: Share,
-    /// Active-edge lists, four per level, each `stride` entries long in one vector
-    /// (child `c`'s at `c * stride`): a cell's children's lists are on the level below,
-    /// filled in one pass over the cell's edges, written by index; the starting
-    /// cell's list is the first of its level. A cell has at most as many active edges
+    /// Active-edge lists, four per level, each `stride` entries long, all in one
+    /// vector: level `k`'s block of four at `4 k stride`, child `c`'s list at `c stride`
+    /// in it. A cell's children's lists are on the level below, filled in one pass
+    /// over the cell's edges, written by index; the starting cell's list is the first
+    /// of its level. A cell has at most as many active edges
     /// as its polygon, so `stride` only grows with a polygon of more edges than any
     /// before (the GP's clipper bounds none).
-    lists: Vec<Vec<ActiveEdge>>,
+    lists: Vec<ActiveEdge>,
     /// Entries per list (see `lists`).
     stride: usize,
     /// Per level, the cells an opaque polygon covers wholly inside, queued by
@@ -423,7 +424,7 @@ impl CellProcessors {
             recorder: None,
             memories,
             cleared_share: Share::WHOLE,
-            lists: vec![Vec::new(); root_level as usize + 1],
+            lists: Vec::new(),
             stride: 0,
             inside: vec![Vec::new(); root_level as usize + 1],
             queued: 0,
@@ -617,25 +618,19 @@ impl CellProcessors {
         let n = poly.edges.len();
         if n > self.stride {
             self.stride = n.next_power_of_two();
-            for list in &mut self.lists {
-                list.resize(4 * self.stride, ActiveEdge::EMPTY);
-            }
+            self.lists.resize(4 * self.stride * (self.root_level as usize + 1), ActiveEdge::EMPTY);
         }
-        let list = &mut self.lists[start.level as usize][..n];
+        let first = 4 * self.stride * start.level as usize;
+        let list = &mut self.lists[first..first + n];
         for (i, (a, e)) in list.iter_mut().zip(poly.edges).enumerate() {
             *a = ActiveEdge::at_cell(i as u32, e, x0, y0, side);
         }
         if start.level == self.root_level {
-            spp(Fragment {
-                px: start.x * 4,
-                py: start.y * 4,
-                active: &self.lists[start.level as usize][..n],
-                cells: ONE_CELL,
-            });
+            spp(Fragment { px: start.x * 4, py: start.y * 4, active: &self.lists[first..first + n], cells: ONE_CELL });
             return;
         }
         let half = 1i64 << (EDGE_FRAC_BITS + (self.root_level + 1 - start.level));
-        self.split::<STATS, FILL>(start, start_z, 0, n, half, poly, counters, spp);
+        self.split::<STATS, FILL>(start, start_z, first, n, half, poly, counters, spp);
     }
 
     /// One GQ step: splits `cell` (Z-order index `z`, its `len` active edges at `list`
@@ -667,9 +662,11 @@ impl CellProcessors {
             return;
         }
         let stride = self.stride;
-        let (lo, hi) = self.lists.split_at_mut(k + 1);
-        let active = &lo[k][list..list + len];
-        let children = &mut hi[0][..4 * stride];
+        // The children's block of lists, after the cell's own.
+        let block = 4 * stride * (k + 1);
+        let (lo, hi) = self.lists.split_at_mut(block);
+        let active = &lo[list..list + len];
+        let children = &mut hi[..4 * stride];
         // Where the children's lists end; child `c`'s starts at `c * stride`.
         let mut ends = [0, stride, 2 * stride, 3 * stride];
         // CI in bits 0-3, CRI in bits 4-7, ANDed over the edges.
@@ -738,14 +735,14 @@ impl CellProcessors {
                 spp(Fragment {
                     px: child_cell.x * 4,
                     py: child_cell.y * 4,
-                    active: &self.lists[child_level as usize][start..end],
+                    active: &self.lists[block + start..block + end],
                     cells: ONE_CELL,
                 });
             } else {
                 self.split::<STATS, FILL>(
                     child_cell,
                     4 * z + c as usize,
-                    start,
+                    block + start,
                     end - start,
                     half >> 1,
                     poly,
