@@ -672,6 +672,10 @@ impl CellProcessors {
         // CI in bits 0-3, CRI in bits 4-7, ANDed over the edges.
         let mut codes_all = 0xFFu32;
         let open = u32::from(!m & 0xF);
+        // The V origin of child `c` less the cell's: half a cell for the children
+        // across V's lines from the first border, by TG (`c = dx + 2 dy`).
+        let across_horizontal = [0, 0, half, half];
+        let across_vertical = [0, half, 0, half];
         for a in active {
             let code = child_codes(a.v1.0, a.v2.0, half, a.kind);
             codes_all &= code.codes;
@@ -685,9 +689,10 @@ impl CellProcessors {
                 crossed &= crossed - 1;
                 // The child's place along V's lines (its half of the stretch) and
                 // across them (its V origin half a cell further or not).
-                let (along, across) = if a.kind & KIND_VERTICAL != 0 { (c >> 1, c & 1) } else { (c & 1, c >> 1) };
+                let vertical = a.kind & KIND_VERTICAL != 0;
+                let along = if vertical { c >> 1 } else { c & 1 };
                 let (v1, v2) = if along == 0 { (a.v1.0, code.vm) } else { (code.vm, a.v2.0) };
-                let shift = if across != 0 { half } else { 0 };
+                let shift = if vertical { across_vertical[c] } else { across_horizontal[c] };
                 children[ends[c]] = ActiveEdge { v1: EdgeCoord(v1 - shift), v2: EdgeCoord(v2 - shift), ..*a };
                 ends[c] += 1;
             }
