@@ -6,8 +6,8 @@
 //!   the screen, level `L` cells are 4 x 4 pixels and go to the SPPs.
 //! - For each active (crossing) edge the GQ forms `(V1 + V2) / 2` by one addition and a
 //!   shift, finds the edge's CI/CRI codes (those of the [`GqRom`](super::tables::GqRom) with the high bits
-//!   of V1, (V1+V2)/2, V2, read by comparisons: `edge_code`), and combines them by
-//!   P1 eq. (2): `CRI = !M & AND CRI_i`, `CI = !M & AND CI_i`, `CR = CRI & !CI`,
+//!   of V1, (V1+V2)/2, V2, read by comparisons and a small table: `child_codes`), and
+//!   combines them by P1 eq. (2): `CRI = !M & AND CRI_i`, `CI = !M & AND CI_i`, `CR = CRI & !CI`,
 //!   `M |= CI`.
 //! - Children's V1, V2 are the parent's V1 and the midpoint, or the midpoint and V2,
 //!   less half a cell for the children further along V: no multiplication below the
@@ -36,17 +36,26 @@ use crate::model::stats::Counters;
 pub struct ActiveEdge {
     /// Index into the polygon's edge list.
     pub edge: u32,
-    /// The edge's TG is [`Tg::Vertical`].
-    pub vertical: bool,
-    /// The edge's LR: the polygon lies on the side of greater V.
-    pub lr: bool,
+    /// TG and LR as the high bits of an address of [`CHILD_CODES`]: bit
+    /// [`KIND_VERTICAL`] for TG = [`Tg::Vertical`], bit [`KIND_LR`] for LR (the polygon
+    /// lies on the side of greater V). One word, so that a child's copy moves the
+    /// edge's index and kind together.
+    kind: u32,
     /// V1: V at the cell's first border, relative to the cell.
     pub v1: EdgeCoord,
     /// V2: V at the cell's second border, relative to the cell.
     pub v2: EdgeCoord,
 }
 
+/// [`ActiveEdge`]'s kind bit for TG = [`Tg::Vertical`].
+const KIND_VERTICAL: u32 = 1 << 8;
+/// [`ActiveEdge`]'s kind bit for LR.
+const KIND_LR: u32 = 1 << 9;
+
 impl ActiveEdge {
+    /// An entry of the scratch lists before it is written.
+    const EMPTY: Self = Self { edge: 0, kind: 0, v1: EdgeCoord(0), v2: EdgeCoord(0) };
+
     /// Edge `edge` (`e` itself) in the cell of side `side` pixels at pixel `(x0, y0)`.
     #[inline]
     pub fn at_cell(edge: u32, e: &EdgeCode, x0: i64, y0: i64, side: i64) -> Self {
@@ -57,11 +66,22 @@ impl ActiveEdge {
         let origin = EdgeCoord::pixels(origin).0;
         Self {
             edge,
-            vertical: e.tg == Tg::Vertical,
-            lr: e.lr,
+            kind: if e.tg == Tg::Vertical { KIND_VERTICAL } else { 0 } | if e.lr { KIND_LR } else { 0 },
             v1: EdgeCoord(e.v_at(t0).0 - origin),
             v2: EdgeCoord(e.v_at(t0 + side).0 - origin),
         }
+    }
+
+    /// Whether the edge's TG is [`Tg::Vertical`].
+    #[inline]
+    pub fn vertical(&self) -> bool {
+        self.kind & KIND_VERTICAL != 0
+    }
+
+    /// The edge's LR: the polygon lies on the side of greater V.
+    #[inline]
+    pub fn lr(&self) -> bool {
+        self.kind & KIND_LR != 0
     }
 }
 
@@ -367,10 +387,16 @@ pub struct CellProcessors {
     memories: Vec<MaskMemory>,
     /// The share the memories' cleared states were made for.
     cleared_share: Share,
-    /// Active-edge lists, four per level: a cell's children's lists are
-    /// `lists[level + 1][child]`, filled in one pass over the cell's edges; the
-    /// starting cell's list is `lists[level][0]`.
-    lists: Vec<[Vec<ActiveEdge>; 4]>,
+    /// Active-edge lists, four per level, each `stride` entries long, all in one
+    /// vector: level `k`'s block of four at `4 k stride`, child `c`'s list at `c stride`
+    /// in it. A cell's children's lists are on the level below, filled in one pass
+    /// over the cell's edges, written by index; the starting cell's list is the first
+    /// of its level. A cell has at most as many active edges
+    /// as its polygon, so `stride` only grows with a polygon of more edges than any
+    /// before (the GP's clipper bounds none).
+    lists: Vec<ActiveEdge>,
+    /// Entries per list (see `lists`).
+    stride: usize,
     /// Per level, the cells an opaque polygon covers wholly inside, queued by
     /// [`Self::descend_filling`] under Greene's rule for [`Self::mark_covered_cells`]
     /// (Z-order indices).
@@ -440,7 +466,8 @@ impl CellProcessors {
             recorder: None,
             memories,
             cleared_share: Share::WHOLE,
-            lists: vec![Default::default(); root_level as usize + 1],
+            lists: Vec::new(),
+            stride: 0,
             inside: vec![Vec::new(); root_level as usize + 1],
             queued: 0,
         }
@@ -630,38 +657,41 @@ impl CellProcessors {
         }
         let side = i64::from(self.side(start.level));
         let (x0, y0) = (i64::from(start.x) * side, i64::from(start.y) * side);
-        let list = &mut self.lists[start.level as usize][0];
-        list.clear();
-        for (i, e) in poly.edges.iter().enumerate() {
-            list.push(ActiveEdge::at_cell(i as u32, e, x0, y0, side));
+        let n = poly.edges.len();
+        if n > self.stride {
+            self.stride = n.next_power_of_two();
+            self.lists.resize(4 * self.stride * (self.root_level as usize + 1), ActiveEdge::EMPTY);
+        }
+        let first = 4 * self.stride * start.level as usize;
+        let list = &mut self.lists[first..first + n];
+        for (i, (a, e)) in list.iter_mut().zip(poly.edges).enumerate() {
+            *a = ActiveEdge::at_cell(i as u32, e, x0, y0, side);
         }
         if start.level == self.root_level {
-            spp(Fragment {
-                px: start.x * 4,
-                py: start.y * 4,
-                active: &self.lists[start.level as usize][0],
-                cells: ONE_CELL,
-            });
+            spp(Fragment { px: start.x * 4, py: start.y * 4, active: &self.lists[first..first + n], cells: ONE_CELL });
             return;
         }
-        self.split::<STATS, FILL>(start, start_z, 0, poly, counters, spp);
+        let half = 1i64 << (EDGE_FRAC_BITS + (self.root_level + 1 - start.level));
+        self.split::<STATS, FILL>(start, start_z, first, n, half, poly, counters, spp);
     }
 
-    /// One GQ step: splits `cell` (Z-order index `z`, its active edges in
-    /// `lists[cell.level][list]`) into four children and descends into those inside
-    /// or crossed.
+    /// One GQ step: splits `cell` (Z-order index `z`, its `len` active edges at `list`
+    /// in its level's lists, `half` its half side in [`EdgeCoord`] units) into four
+    /// children and descends into those inside or crossed.
+    #[expect(clippy::too_many_arguments, reason = "the descent's state, passed in registers")]
     fn split<const STATS: bool, const FILL: bool>(
         &mut self,
         cell: Cell,
         z: usize,
         list: usize,
+        len: usize,
+        half: i64,
         poly: &GqPolygon,
         counters: &mut Counters,
         spp: &mut impl FnMut(Fragment),
     ) {
         let k = cell.level as usize;
         let child_level = cell.level + 1;
-        let half = 1i64 << (EDGE_FRAC_BITS + (self.root_level + 1 - cell.level));
 
         // Edge codes: CI_i, CRI_i per edge, ANDed (P1 eq. 2); each edge goes on the
         // lists of the children it crosses, with the V of the child's stretch.
@@ -673,30 +703,43 @@ impl CellProcessors {
         if !STATS && m == 0xF {
             return;
         }
-        let mut ci_all = 0xFu8;
-        let mut cri_all = 0xFu8;
-        let (lo, hi) = self.lists.split_at_mut(k + 1);
-        let active = &lo[k][list];
-        let children = &mut hi[0];
-        for c in children.iter_mut() {
-            c.clear();
-        }
+        let stride = self.stride;
+        // The children's block of lists, after the cell's own.
+        let block = 4 * stride * (k + 1);
+        let (lo, hi) = self.lists.split_at_mut(block);
+        let active = &lo[list..list + len];
+        let children = &mut hi[..4 * stride];
+        // Where the children's lists end; child `c`'s starts at `c * stride`.
+        let mut ends = [0, stride, 2 * stride, 3 * stride];
+        // CI in bits 0-3, CRI in bits 4-7, ANDed over the edges.
+        let mut codes_all = 0xFFu32;
+        let open = u32::from(!m & 0xF);
+        // The V origin of child `c` less the cell's: half a cell for the children
+        // across V's lines from the first border, by TG (`c = dx + 2 dy`).
+        let across_horizontal = [0, 0, half, half];
+        let across_vertical = [0, half, 0, half];
         for a in active {
-            let code = edge_code(a.v1.0, a.v2.0, half, a.vertical, a.lr);
-            ci_all &= code.ci;
-            cri_all &= code.cri;
-            let mut crossed = code.cri & !code.ci & !m;
+            let code = child_codes(a.v1.0, a.v2.0, half, a.kind);
+            codes_all &= code.codes;
+            if !STATS && codes_all >> 4 & open == 0 {
+                // Every open child is OUT: no child to descend into, none IN.
+                break;
+            }
+            let mut crossed = code.codes >> 8 & open;
             while crossed != 0 {
                 let c = crossed.trailing_zeros() as usize;
                 crossed &= crossed - 1;
                 // The child's place along V's lines (its half of the stretch) and
                 // across them (its V origin half a cell further or not).
-                let (along, across) = if a.vertical { (c >> 1, c & 1) } else { (c & 1, c >> 1) };
+                let vertical = a.kind & KIND_VERTICAL != 0;
+                let along = if vertical { c >> 1 } else { c & 1 };
                 let (v1, v2) = if along == 0 { (a.v1.0, code.vm) } else { (code.vm, a.v2.0) };
-                let shift = half * across as i64;
-                children[c].push(ActiveEdge { v1: EdgeCoord(v1 - shift), v2: EdgeCoord(v2 - shift), ..*a });
+                let shift = if vertical { across_vertical[c] } else { across_horizontal[c] };
+                children[ends[c]] = ActiveEdge { v1: EdgeCoord(v1 - shift), v2: EdgeCoord(v2 - shift), ..*a };
+                ends[c] += 1;
             }
         }
+        let (ci_all, cri_all) = (codes_all as u8 & 0xF, (codes_all >> 4) as u8 & 0xF);
         let mem_on = self.masks.has(child_level);
         let cri = !m & cri_all & 0xF;
         let ci = !m & ci_all & 0xF;
@@ -734,15 +777,25 @@ impl CellProcessors {
                 }
                 continue;
             }
+            let (start, end) = (c as usize * stride, ends[c as usize]);
             if child_level == self.root_level {
                 spp(Fragment {
                     px: child_cell.x * 4,
                     py: child_cell.y * 4,
-                    active: &self.lists[child_level as usize][c as usize],
+                    active: &self.lists[block + start..block + end],
                     cells: ONE_CELL,
                 });
             } else {
-                self.split::<STATS, FILL>(child_cell, 4 * z + c as usize, c as usize, poly, counters, spp);
+                self.split::<STATS, FILL>(
+                    child_cell,
+                    4 * z + c as usize,
+                    block + start,
+                    end - start,
+                    half >> 1,
+                    poly,
+                    counters,
+                    spp,
+                );
             }
         }
     }
@@ -774,7 +827,77 @@ impl CellProcessors {
     }
 }
 
+/// One edge's codes for the four children of a cell ([`child_codes`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct ChildCodes {
+    /// An entry of [`CHILD_CODES`]: CI in bits 0-3 (the children wholly on the
+    /// polygon's side, bit `dx + 2 dy`), CRI in bits 4-7 (those not wholly off it),
+    /// `CRI & !CI` in bits 8-11 (those the edge crosses).
+    codes: u32,
+    /// The midpoint `(V1 + V2) / 2`, relative to the cell.
+    vm: i64,
+}
+
+/// The GQ ROM's answer ([`GqRom`](super::tables::GqRom), P1 eq. 1) for one edge with
+/// `V1 = d1`, `V2 = d2` relative to the cell, half a cell `half` and TG, LR in `kind`
+/// (see [`ActiveEdge`]), by comparisons and one read of [`CHILD_CODES`] (the same bits
+/// as the plain definition `edge_code`, tested). A child's stretch of the line is `(V1, Vm)` or `(Vm, V2)`
+/// (halves 0 and 1 along V's lines); with `lo`, `hi` its least and greatest V, the
+/// ROM's readings are the thermometer codes `(hi <= 0) + (hi <= half)` (how many of
+/// the children across it the line lies at or before the near border of) and
+/// `(lo >= half) + (lo >= 2 half)` (at or beyond the far border of), each 0, 1 or 2
+/// (`half > 0`), two bits of the table's address each: 8 comparisons and no variable
+/// shift, the children's bit order by TG and the sides by LR left to the table.
+#[inline(always)]
+fn child_codes(d1: i64, d2: i64, half: i64, kind: u32) -> ChildCodes {
+    let dm = (d1 + d2) >> 1;
+    let (lo0, hi0) = (d1.min(dm), d1.max(dm));
+    let (lo1, hi1) = (dm.min(d2), dm.max(d2));
+    // `neg(v)`: 1 when `v < 0`, by its sign bit (|V| < 2^46: no overflow).
+    let neg = |v: i64| (v as u64 >> 63) as u32;
+    let before0 = neg(hi0 - 1) + neg(hi0 - (half + 1));
+    let before1 = neg(hi1 - 1) + neg(hi1 - (half + 1));
+    // Two less the "at or beyond" codes.
+    let short0 = neg(lo0 - half) + neg(lo0 - 2 * half);
+    let short1 = neg(lo1 - half) + neg(lo1 - 2 * half);
+    let address = (before0 | before1 << 2 | short0 << 4 | short1 << 6 | kind) as usize & (CHILD_CODES.len() - 1);
+    ChildCodes { codes: u32::from(CHILD_CODES[address]), vm: dm }
+}
+
+/// [`child_codes`]'s table: at address `b0 | b1 << 2 | a0 << 4 | a1 << 6 | kind`
+/// (thermometer codes `b` "at or before the near border", `a` "at or beyond the far
+/// border" of halves 0 and 1 of the stretch; `kind` [`KIND_VERTICAL`] and [`KIND_LR`]),
+/// CI in bits 0-3, CRI in bits 4-7, `CRI & !CI` in bits 8-11. Addresses with a code 3
+/// never occur.
+const CHILD_CODES: [u16; 1024] = child_code_table();
+
+/// Builds [`CHILD_CODES`]: the bits the plain `edge_code` forms, by the same rule.
+const fn child_code_table() -> [u16; 1024] {
+    let mut table = [0u16; 1024];
+    let mut address = 0;
+    while address < 1024 {
+        let (b0, b1) = (address & 3, address >> 2 & 3);
+        // The address holds two less the "at or beyond" codes.
+        // (3 never occurs: read as 2.)
+        let (a0, a1) = (2usize.saturating_sub(address >> 4 & 3), 2usize.saturating_sub(address >> 6 & 3));
+        let vertical = address as u32 & KIND_VERTICAL != 0;
+        let lr = address as u32 & KIND_LR != 0;
+        // Child bit of (along, across) = (0, 1) and (1, 0), as in `edge_code`.
+        let (p01, p10) = if vertical { (1, 2) } else { (2, 1) };
+        // Code 2: at or before both the near (0) and far (half) lines; 1: the far only.
+        let before = (b0 == 2) as u32 | ((b0 >= 1) as u32) << p01 | ((b1 == 2) as u32) << p10 | ((b1 >= 1) as u32) << 3;
+        // Code 2: at or beyond half and 2 half; 1: half only.
+        let after = (a0 >= 1) as u32 | ((a0 == 2) as u32) << p01 | ((a1 >= 1) as u32) << p10 | ((a1 == 2) as u32) << 3;
+        let (inside, outside) = if lr { (before, after) } else { (after, before) };
+        let cri = !outside & 0xF;
+        table[address] = (inside | cri << 4 | (cri & !inside) << 8) as u16;
+        address += 1;
+    }
+    table
+}
+
 /// One edge's codes for the four children of a cell ([`edge_code`]).
+#[cfg(test)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct EdgeChildCodes {
     /// CI: the children wholly on the polygon's side (bit `dx + 2 dy`).
@@ -792,8 +915,9 @@ struct EdgeChildCodes {
 /// reads "the line lies at or before the child's near border" as `max <= across half`
 /// (its reading of the high bits of V one LSB lower) and "at or beyond its far
 /// border" as `min >= (across + 1) half`. With LR = 1 the first is IN and the second
-/// OUT; with LR = 0 the other way round. No branch and no table address.
-#[inline(always)]
+/// OUT; with LR = 0 the other way round. The plain definition [`child_codes`] is
+/// tested against.
+#[cfg(test)]
 fn edge_code(d1: i64, d2: i64, half: i64, vertical: bool, lr: bool) -> EdgeChildCodes {
     let dm = (d1 + d2) >> 1;
     let (lo0, hi0) = (d1.min(dm), d1.max(dm));
@@ -835,6 +959,7 @@ fn record_children(rec: &mut Vec<CellRecord>, cell: Cell, cri_all: u8, m: u8, ci
 
 #[cfg(test)]
 mod tests {
+    use super::super::edge::{ScreenFx, SNAP_ONE};
     use super::*;
 
     /// Z order: a bijection of the square, a cell's four children one nibble of the
@@ -953,9 +1078,123 @@ mod tests {
                         want,
                         "d1 {d1}, d2 {d2}, half {half}, {tg:?}, lr {lr}"
                     );
+                    let kind = if vertical { KIND_VERTICAL } else { 0 } | if lr { KIND_LR } else { 0 };
+                    let fast = child_codes(d1, d2, half, kind);
+                    let codes = u32::from(ci) | u32::from(cri) << 4 | u32::from(cri & !ci) << 8;
+                    assert_eq!(fast, ChildCodes { codes, vm: dm }, "d1 {d1}, d2 {d2}, half {half}, {tg:?}, lr {lr}");
                 }
             }
         }
+    }
+
+    /// The plain descent, the GQ's definition before its optimisations: lists in
+    /// vectors, pushed per crossed child, the codes by [`edge_code`] (tested against
+    /// the ROM), every edge to the end, no mask; the last-level cells with their
+    /// active edges, in the descent's order.
+    fn plain_descent(root_level: u32, cell: Cell, active: Vec<ActiveEdge>, out: &mut Vec<(u32, u32, Vec<ActiveEdge>)>) {
+        if cell.level == root_level {
+            out.push((cell.x * 4, cell.y * 4, active));
+            return;
+        }
+        let half = 1i64 << (EDGE_FRAC_BITS + (root_level + 1 - cell.level));
+        let mut children: [Vec<ActiveEdge>; 4] = Default::default();
+        let mut cri_all = 0xF;
+        for a in &active {
+            let code = edge_code(a.v1.0, a.v2.0, half, a.vertical(), a.lr());
+            cri_all &= code.cri;
+            for (c, child) in children.iter_mut().enumerate() {
+                if (code.cri & !code.ci) >> c & 1 == 1 {
+                    let (along, across) = if a.vertical() { (c >> 1, c & 1) } else { (c & 1, c >> 1) };
+                    let (v1, v2) = if along == 0 { (a.v1.0, code.vm) } else { (code.vm, a.v2.0) };
+                    let shift = half * across as i64;
+                    child.push(ActiveEdge { v1: EdgeCoord(v1 - shift), v2: EdgeCoord(v2 - shift), ..*a });
+                }
+            }
+        }
+        for (c, child) in children.into_iter().enumerate() {
+            if cri_all >> c & 1 == 1 {
+                let (x, y) = (cell.x * 2 + (c as u32 & 1), cell.y * 2 + (c as u32 >> 1));
+                plain_descent(root_level, Cell { level: cell.level + 1, x, y }, child, out);
+            }
+        }
+    }
+
+    /// The descent (lists written by index, codes by the table, the split left when
+    /// every child is OUT) reaches the cells the plain descent does, with the same
+    /// active edges, in the same order: random triangles, slivers and tiny ones
+    /// among them, on a square screen (no cell pre-masked), no mask in use.
+    #[test]
+    fn descent_is_the_plain_descent() {
+        const SIDE: u32 = 256;
+        let mut gq = CellProcessors::new(SIDE, SIDE, MaskLevels::NONE);
+        let root_side = gq.side(0);
+        let mut state = 0x2545_F491_4F6C_DD1D_u64;
+        let mut next = move |n: u64| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state % n
+        };
+        let snap = i64::from(SNAP_ONE);
+        let mut checked = 0;
+        for k in 0..3000 {
+            // Vertices in snapped units; a third of the triangles slivers (the third
+            // vertex near the first two's line), some tiny.
+            let scale = if k % 5 == 0 { 8 * snap as u64 } else { u64::from(SIDE) * snap as u64 };
+            let (ox, oy) = (
+                next(u64::from(SIDE) * snap as u64 - scale + 1) as i64,
+                next(u64::from(SIDE) * snap as u64 - scale + 1) as i64,
+            );
+            let mut p = [(0i64, 0i64); 3];
+            for v in &mut p[..2] {
+                *v = (ox + next(scale) as i64, oy + next(scale) as i64);
+            }
+            p[2] = if k % 3 == 0 {
+                let t = next(1024) as i64;
+                let (x, y) = (p[0].0 + (p[1].0 - p[0].0) * t / 1024, p[0].1 + (p[1].1 - p[0].1) * t / 1024);
+                (
+                    (x + next(65) as i64 - 32).clamp(0, (SIDE as i64) * snap - 1),
+                    (y + next(65) as i64 - 32).clamp(0, (SIDE as i64) * snap - 1),
+                )
+            } else {
+                (ox + next(scale) as i64, oy + next(scale) as i64)
+            };
+            let cross = (p[1].0 - p[0].0) * (p[2].1 - p[0].1) - (p[1].1 - p[0].1) * (p[2].0 - p[0].0);
+            if cross == 0 {
+                continue;
+            }
+            let fx = |v: (i64, i64)| (ScreenFx(v.0 as i32), ScreenFx(v.1 as i32));
+            let Some(edges) = (0..3)
+                .map(|i| EdgeCode::new(fx(p[i]), fx(p[(i + 1) % 3]), cross > 0, root_side))
+                .collect::<Option<Vec<_>>>()
+            else {
+                continue;
+            };
+            // The box as the VP forms it: a pixel wider each way, inside the screen.
+            let lo = |v: i64| ((v.div_euclid(snap) - 1).max(0) as u32).min(SIDE);
+            let hi = |v: i64| ((v + snap - 1).div_euclid(snap) + 1).clamp(0, i64::from(SIDE)) as u32;
+            let (xs, ys) = (p.map(|v| v.0), p.map(|v| v.1));
+            let (x0, x1) = (*xs.iter().min().unwrap(), *xs.iter().max().unwrap());
+            let (y0, y1) = (*ys.iter().min().unwrap(), *ys.iter().max().unwrap());
+            let bbox = [lo(x0), hi(x1), lo(y0), hi(y1)];
+            let poly = GqPolygon { edges: &edges, opaque: false, bbox };
+            gq.clear();
+            let mut got = Vec::new();
+            let mut counters = Counters::new(gq.root_level);
+            gq.descend::<false>(&poly, &mut counters, &mut |f: Fragment| got.push((f.px, f.py, f.active.to_vec())));
+            let start = gq.bounding_cell(bbox);
+            let side = i64::from(gq.side(start.level));
+            let active = (0..3)
+                .map(|i| {
+                    ActiveEdge::at_cell(i as u32, &edges[i], i64::from(start.x) * side, i64::from(start.y) * side, side)
+                })
+                .collect();
+            let mut want = Vec::new();
+            plain_descent(gq.root_level, start, active, &mut want);
+            assert_eq!(got, want, "triangle {p:?}");
+            checked += 1;
+        }
+        assert!(checked > 2500);
     }
 
     proptest::proptest! {
