@@ -741,6 +741,7 @@ impl<'a> Shared<'a> {
     /// Whether the subtree of node `n` of the static tree is passed over whole
     /// ([`Visit::Culled`]): large enough, wholly outside the view volume, and with
     /// no guest attached inside (a guest's place would be lost).
+    #[inline]
     fn culls(&self, n: u32) -> bool {
         let bsp = &self.db.bsp;
         if !self.cull || bsp.subtree_faces(n) < CULL_MIN_FACES || !self.frustum.rejects(bsp.bounds(n)) {

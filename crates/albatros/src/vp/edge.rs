@@ -179,17 +179,18 @@ impl EdgeCode {
         root_side: u32,
         out: &mut Vec<EdgeCode>,
     ) {
-        let n = points.len();
-        let next = |i: usize| if i + 1 < n { points[i + 1] } else { points[0] };
+        let (Some(&first), Some(&last)) = (points.first(), points.last()) else { return };
+        // Each point with the next one, then the last with the first: one
+        // reservation and no bounds check per edge.
+        out.reserve(points.len());
         if fast_bounds(points, root_side) {
-            // One reservation and no capacity check per edge (`extend` of a range).
-            out.extend((0..n).map(|i| {
-                Self::new_fast(points[i], next(i), inside_positive, root_side).expect("consecutive points differ")
-            }));
+            let code = |a, b| Self::new_fast(a, b, inside_positive, root_side).expect("consecutive points differ");
+            out.extend(points.windows(2).map(|w| code(w[0], w[1])));
+            out.push(code(last, first));
         } else {
-            out.extend((0..n).map(|i| {
-                Self::new_general(points[i], next(i), inside_positive, root_side).expect("consecutive points differ")
-            }));
+            let code = |a, b| Self::new_general(a, b, inside_positive, root_side).expect("consecutive points differ");
+            out.extend(points.windows(2).map(|w| code(w[0], w[1])));
+            out.push(code(last, first));
         }
     }
 
