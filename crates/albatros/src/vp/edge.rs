@@ -140,13 +140,13 @@ impl ExactLine {
 }
 
 /// Whether [`EdgeCode::new_fast`] takes edges between `points`: every coordinate
-/// of magnitude below `2^FAST_COORD_BITS` and the root side at most
-/// [`MAX_ROOT_SIDE`].
+/// of magnitude below `2^FAST_COORD_BITS` and the root side a power of two at
+/// most [`MAX_ROOT_SIDE`].
 #[inline(always)]
 fn fast_bounds(points: &[(ScreenFx, ScreenFx)], root_side: u32) -> bool {
     // `x ^ (x >> 31)` is `|x|` or `|x| - 1`: all magnitudes tested by one OR.
     let mag = points.iter().fold(0, |m, p| m | (p.0 .0 ^ (p.0 .0 >> 31)) | (p.1 .0 ^ (p.1 .0 >> 31)));
-    mag >> FAST_COORD_BITS == 0 && root_side <= MAX_ROOT_SIDE
+    mag >> FAST_COORD_BITS == 0 && root_side <= MAX_ROOT_SIDE && root_side.is_power_of_two()
 }
 
 impl EdgeCode {
@@ -161,7 +161,7 @@ impl EdgeCode {
         root_side: u32,
     ) -> Option<Self> {
         if fast_bounds(&[a, b], root_side) {
-            Self::new_fast(a, b, inside_positive, root_side)
+            Self::new_fast(a, b, inside_positive, root_side.trailing_zeros())
         } else {
             Self::new_general(a, b, inside_positive, root_side)
         }
@@ -184,7 +184,8 @@ impl EdgeCode {
         // reservation and no bounds check per edge.
         out.reserve(points.len());
         if fast_bounds(points, root_side) {
-            let code = |a, b| Self::new_fast(a, b, inside_positive, root_side).expect("consecutive points differ");
+            let root_bits = root_side.trailing_zeros();
+            let code = |a, b| Self::new_fast(a, b, inside_positive, root_bits).expect("consecutive points differ");
             out.extend(points.windows(2).map(|w| code(w[0], w[1])));
             out.push(code(last, first));
         } else {
@@ -195,7 +196,7 @@ impl EdgeCode {
     }
 
     /// [`EdgeCode::new`] for endpoints and root side within [`fast_bounds`] (outside
-    /// them its products may overflow).
+    /// them its products may overflow), the root side given as `2^root_bits` pixels.
     ///
     /// V's values at the root borders are `floor((au dw + (t - aw) du) 2^8 / dw)`
     /// (see `v_at` in [`EdgeCode::new_general`]). `au 2^8` is an integer, so it comes
@@ -208,7 +209,7 @@ impl EdgeCode {
         a: (ScreenFx, ScreenFx),
         b: (ScreenFx, ScreenFx),
         inside_positive: bool,
-        root_side: u32,
+        root_bits: u32,
     ) -> Option<Self> {
         let (ax, ay) = (i64::from(a.0 .0), i64::from(a.1 .0));
         let (bx, by) = (i64::from(b.0 .0), i64::from(b.1 .0));
@@ -219,11 +220,17 @@ impl EdgeCode {
         // product is -dy; for a horizontal edge a + (0, 1), cross product dx.
         let greater_side_positive = if vertical { dy < 0 } else { dx > 0 };
         let lr = greater_side_positive == inside_positive;
-        // Swap to V = coordinate along (u), t = coordinate across (w).
-        let (au, aw, bu, bw) = if vertical { (ax, ay, bx, by) } else { (ay, ax, by, bx) };
-        // Canonical order: increasing t, so the rounding cannot depend on direction.
-        let (au, aw, bu, bw) = if aw <= bw { (au, aw, bu, bw) } else { (bu, bw, au, aw) };
-        let (du, dw) = (bu - au, bw - aw);
+        // E = dy (x - ax) - dx (y - ay), then oriented towards greater V: flipped
+        // exactly where the greater side is the positive one.
+        let (ca, cb) = if greater_side_positive { (-dy, dx) } else { (dy, -dx) };
+        let cc = -(ca * ax + cb * ay);
+        let (pa, pb) = ((a.0 .0, a.1 .0), (b.0 .0, b.1 .0));
+        let ends = if pa <= pb { [pa, pb] } else { [pb, pa] };
+        // Swap to V = coordinate along (u), t = coordinate across (w), from the end
+        // of smaller t (the canonical order: the rounding cannot depend on the
+        // direction): `(au, aw)` that end, `(du, dw)` towards the other.
+        let (au, aw, du, dw) = if vertical { (ax, ay, dx, dy) } else { (ay, ax, dy, dx) };
+        let (au, aw, du, dw) = if dw < 0 { (au + du, aw + dw, -du, -dw) } else { (au, aw, du, dw) };
         if dw <= 0 {
             // Only when a == b (|dw| >= |du|); the test also tells the compiler that
             // the divisor is positive, so it drops the divisions' guards.
@@ -232,21 +239,16 @@ impl EdgeCode {
         let scale_bits = ROOT_V_BITS - SNAP_BITS;
         // floor(n / dw) for dw > 0 (the quotient and remainder of one division).
         let floor_div = |n: i64| n / dw - i64::from(n % dw < 0);
-        let t2 = i64::from(root_side) << SNAP_BITS;
-        let q1 = floor_div((-aw * du) << scale_bits);
-        let q2 = floor_div(((t2 - aw) * du) << scale_bits);
+        // The numerators at t = 0 and t = root_side (in snapped units, a power of
+        // two): `(t - aw) du 2^8`, the second the first plus `t du 2^8`.
+        let n1 = (-aw * du) << scale_bits;
+        let n2 = n1 + (du << (root_bits + SNAP_BITS + scale_bits));
+        let (q1, q2) = (floor_div(n1), floor_div(n2));
         let shift = EDGE_FRAC_BITS - ROOT_V_BITS;
         let origin = ((au << scale_bits) + q1) << shift;
         // Exact: the difference has `shift` >= 16 zero low bits and the root side
         // is a power of two at most 2^13.
-        debug_assert!(root_side.is_power_of_two());
-        let slope = ((q2 - q1) << shift) >> root_side.trailing_zeros();
-        // E = dy (x - ax) - dx (y - ay), then oriented towards greater V: flipped
-        // exactly where the greater side is the positive one.
-        let (ca, cb) = if greater_side_positive { (-dy, dx) } else { (dy, -dx) };
-        let cc = -(ca * ax + cb * ay);
-        let (pa, pb) = ((a.0 .0, a.1 .0), (b.0 .0, b.1 .0));
-        let ends = if pa <= pb { [pa, pb] } else { [pb, pa] };
+        let slope = ((q2 - q1) << shift) >> root_bits;
         Some(Self {
             tg,
             lr,
