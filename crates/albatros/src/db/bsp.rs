@@ -557,6 +557,7 @@ impl Bsp {
         self.walk(
             0,
             eye,
+            true,
             |_| None,
             |p| {
                 if let Piece::Visit(v) = p {
@@ -569,21 +570,25 @@ impl Bsp {
     /// The front-to-back order of the subtree of `node` alone: the same visits that
     /// [`Bsp::traverse`] makes between entering and leaving that node.
     pub fn traverse_subtree(&self, node: u32, eye: DVec3, visit: impl FnMut(Visit)) {
-        self.traverse_subtree_culled(node, eye, |_| false, visit);
+        self.traverse_subtree_culled(node, eye, true, |_| false, visit);
     }
 
     /// [`Bsp::traverse_subtree`], except that a node for which `cull` is true is
-    /// visited whole as one [`Visit::Culled`] in place of its subtree's visits.
+    /// visited whole as one [`Visit::Culled`] in place of its subtree's visits, and
+    /// that the guests' places are visited only with `guests` (a frame with none
+    /// attached need not visit two or three places per node).
     pub fn traverse_subtree_culled(
         &self,
         node: u32,
         eye: DVec3,
+        guests: bool,
         cull: impl Fn(u32) -> bool,
         mut visit: impl FnMut(Visit),
     ) {
         self.walk(
             node,
             eye,
+            guests,
             |n| cull(n).then_some(Piece::Visit(Visit::Culled(n))),
             |p| {
                 if let Piece::Visit(v) = p {
@@ -606,6 +611,7 @@ impl Bsp {
         self.walk(
             0,
             eye,
+            true,
             |n| (n != 0 && self.subtree_faces[n as usize] <= max_faces).then_some(Piece::Subtree(n)),
             piece,
         );
@@ -613,7 +619,15 @@ impl Bsp {
 
     /// The traversal from `root`; a node for which `cut` gives a piece is handed out
     /// whole as that piece ([`Piece::Subtree`] or [`Visit::Culled`]).
-    fn walk(&self, root: u32, eye: DVec3, cut: impl Fn(u32) -> Option<Piece>, mut visit: impl FnMut(Piece)) {
+    /// Guests' places are visited only with `guests`.
+    fn walk(
+        &self,
+        root: u32,
+        eye: DVec3,
+        guests: bool,
+        cut: impl Fn(u32) -> Option<Piece>,
+        mut visit: impl FnMut(Piece),
+    ) {
         /// A node whose near side is being walked: what is left of it.
         struct Rest {
             node: u32,
@@ -647,13 +661,17 @@ impl Bsp {
                     n = near;
                     continue 'enter;
                 }
-                visit(Piece::Visit(Visit::Guests(n, near_slot)));
+                if guests {
+                    visit(Piece::Visit(Visit::Guests(n, near_slot)));
+                }
                 Some(rest)
             };
             // Leave the near side of `rest` (or of the nodes on the stack).
             loop {
                 let Some(Rest { node, faces, far, far_slot }) = rest.take().or_else(|| stack.pop()) else { return };
-                visit(Piece::Visit(Visit::Guests(node, Slot::Straddle)));
+                if guests {
+                    visit(Piece::Visit(Visit::Guests(node, Slot::Straddle)));
+                }
                 for f in faces {
                     visit(Piece::Visit(Visit::Face(f)));
                 }
@@ -661,7 +679,9 @@ impl Bsp {
                     n = far;
                     continue 'enter;
                 }
-                visit(Piece::Visit(Visit::Guests(node, far_slot)));
+                if guests {
+                    visit(Piece::Visit(Visit::Guests(node, far_slot)));
+                }
             }
         }
     }

@@ -511,8 +511,9 @@ pub fn frame_into(
     frame_with(db, eye, screen, config, counters, memory, out, true);
 }
 
-/// [`frame_into`], with or without passing over the static tree's subtrees outside
-/// the view volume (`cull`; the tests compare the two).
+/// [`frame_into`], with or without its shortcuts in the traversal (`shortcuts`:
+/// passing over the static tree's subtrees outside the view volume, and over the
+/// guests' places in a frame with no guests; the tests compare the two).
 #[allow(clippy::too_many_arguments)]
 fn frame_with(
     db: &Database,
@@ -522,11 +523,11 @@ fn frame_with(
     counters: &mut GpCounters,
     memory: &mut GpMemory,
     out: &mut FrameList,
-    cull: bool,
+    shortcuts: bool,
 ) {
     let view = View::new(eye, screen);
     let mut shared = Shared::new(db, view, *config);
-    shared.cull = cull;
+    shared.cull = shortcuts;
     let shared = shared;
     // Only the places where guests are attached this frame are visited (a
     // terrain's tree has twice as many empty places as faces).
@@ -539,6 +540,8 @@ fn frame_with(
         }
     }
     let places = &place_bits[..];
+    // With no guest attached this frame, their places need no visits.
+    let guests = !shared.guests.is_empty() || !shortcuts;
     // The priority order: the BSP's traversal, cut into pieces (whole subtrees and
     // the single visits above them) and the pieces into tasks of about
     // `FACES_PER_TASK` faces, each traversed and set up by one GP.
@@ -580,7 +583,7 @@ fn frame_with(
             match piece {
                 Piece::Visit(v) => b.visit(v),
                 Piece::Subtree(n) => {
-                    db.bsp.traverse_subtree_culled(n, view.position, |n| shared.culls(n), |v| b.visit(v))
+                    db.bsp.traverse_subtree_culled(n, view.position, guests, |n| shared.culls(n), |v| b.visit(v))
                 }
             }
         }
@@ -639,7 +642,7 @@ fn frame_with(
             if db.bsp.nodes.is_empty() {
                 db.bsp.traverse(view.position, |v| b.visit(v));
             } else {
-                db.bsp.traverse_subtree_culled(0, view.position, |n| shared.culls(n), |v| b.visit(v));
+                db.bsp.traverse_subtree_culled(0, view.position, guests, |n| shared.culls(n), |v| b.visit(v));
             }
             c = b.counters;
         }
@@ -997,12 +1000,13 @@ mod tests {
     use super::*;
     use crate::db::builtin;
 
-    /// Passing over the subtrees outside the view volume changes neither the frame
-    /// list (polygons, vertices, edge codes) nor a counter: built-in scenes with
-    /// light points and a moving model, eyes turned every way (much of the tree
-    /// behind or beside them), one and two GPs.
+    /// The traversal's shortcuts (passing over the subtrees outside the view
+    /// volume, and over the guests' places when there are none) change neither the
+    /// frame list (polygons, vertices, edge codes) nor a counter: built-in scenes
+    /// with and without light points and moving models, eyes turned every way (much
+    /// of the tree behind or beside them), one and two GPs.
     #[test]
-    fn culled_subtrees_change_nothing() {
+    fn traversal_shortcuts_change_nothing() {
         let mut state = 0x9E37_79B9_7F4A_7C15u64;
         let mut next = |lo: f32, hi: f32| {
             state ^= state << 13;
@@ -1011,10 +1015,11 @@ mod tests {
             lo + (hi - lo) * (state >> 40) as f32 / (1u64 << 24) as f32
         };
         let mut culled_some = false;
-        for name in ["default", "city"] {
+        // Terrain has no guests; default has light points and a moving model.
+        for (name, eyes) in [("default", 16), ("city", 16), ("terrain", 6)] {
             let db = Database::new(builtin::scene(name).expect("built-in"));
             let screen = Screen { width: 320, height: 200 };
-            for k in 0..16 {
+            for k in 0..eyes {
                 let mut eye = db.scene.eye;
                 if k > 0 {
                     eye.position += glam::Vec3::new(next(-300.0, 300.0), next(-300.0, 300.0), next(0.0, 80.0));
@@ -1025,9 +1030,9 @@ mod tests {
                 }
                 for threads in [1, 2] {
                     let config = GpConfig { threads, ..GpConfig::default() };
-                    let run = |cull: bool| {
+                    let run = |shortcuts: bool| {
                         let (mut c, mut out) = (GpCounters::default(), FrameList::default());
-                        frame_with(&db, &eye, screen, &config, &mut c, &mut GpMemory::default(), &mut out, cull);
+                        frame_with(&db, &eye, screen, &config, &mut c, &mut GpMemory::default(), &mut out, shortcuts);
                         (out, c)
                     };
                     let (plain, fast) = (run(false), run(true));
