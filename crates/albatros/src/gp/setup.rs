@@ -228,8 +228,10 @@ pub fn snap_outline(outline: &[DVec2], s: &mut Vec<(ScreenFx, ScreenFx)>) -> Opt
     let sign = area2.signum();
     // Nearly every outline is strictly convex already (every turn the area's
     // way): then the passes below remove nothing, and each of their checks is the
-    // one made here (without their index arithmetic: a division per check).
-    if strictly_convex(s, sign) {
+    // one made here (without their index arithmetic: a division per check). A
+    // triangle needs no check: each of its turns `(b - a) x (c - b)` is exactly
+    // its doubled area, of the area's sign.
+    if s.len() == 3 || strictly_convex(s, sign) {
         return Some(sign > 0);
     }
     let mut i = 0;
