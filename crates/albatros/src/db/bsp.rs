@@ -26,7 +26,9 @@
 //! Nodes are numbered depth first, so a subtree is a range of nodes and of faces:
 //! [`Bsp::pieces`] cuts the order into whole subtrees that several GPs traverse
 //! on their own ([`Bsp::traverse_subtree`]), and [`FaceRecord`]s keep the faces
-//! the GP reads every frame in that order.
+//! the GP reads every frame in that order. Each node keeps the box around its
+//! subtree's faces ([`NodeBounds`]), with which the GP passes over whole subtrees
+//! outside the view volume ([`Bsp::traverse_subtree_culled`]).
 //!
 //! **Invariant**: for non-intersecting faces, a face that can hide another from the
 //! eye is emitted before it.
@@ -166,7 +168,21 @@ pub struct Bsp {
     pub stats: BspStats,
     /// Per node: the faces of its subtree (its own and all below it).
     subtree_faces: Vec<u32>,
+    /// Per node: the nodes of its subtree (itself and all below it).
+    subtree_nodes: Vec<u32>,
+    /// Per node: the box around its subtree's faces.
+    bounds: Vec<NodeBounds>,
     eps: f64,
+}
+
+/// The axis-aligned box around the faces of a node's subtree, as its centre and
+/// half extent (the GP rejects whole subtrees outside the view volume with it).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct NodeBounds {
+    /// Centre.
+    pub center: DVec3,
+    /// Half the extent along each axis (never negative).
+    pub half: DVec3,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
@@ -284,15 +300,42 @@ impl Bsp {
         }
         // Children come after their parent in depth-first order.
         let mut count: Vec<u32> = self.nodes.iter().map(|n| n.faces.end - n.faces.start).collect();
+        let mut nodes = vec![1u32; self.nodes.len()];
+        let mut boxes: Vec<(DVec3, DVec3)> = self
+            .nodes
+            .iter()
+            .map(|n| {
+                let vs = &self.record_vertices[self.records.get(n.faces.start as usize).map_or(0, |r| r.start as usize)
+                    ..self.records.get(n.faces.end as usize).map_or(self.record_vertices.len(), |r| r.start as usize)];
+                vs.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), v| {
+                    (lo.min(v.position), hi.max(v.position))
+                })
+            })
+            .collect();
         for n in (0..self.nodes.len()).rev() {
             let node = &self.nodes[n];
             for c in [node.front, node.back] {
                 if c != NONE {
                     count[n] += count[c as usize];
+                    nodes[n] += nodes[c as usize];
+                    let (lo, hi) = boxes[c as usize];
+                    boxes[n] = (boxes[n].0.min(lo), boxes[n].1.max(hi));
                 }
             }
         }
         self.subtree_faces = count;
+        self.subtree_nodes = nodes;
+        // An empty subtree (none is expected) gets an empty box at the origin.
+        self.bounds = boxes
+            .into_iter()
+            .map(|(lo, hi)| {
+                if lo.cmple(hi).all() {
+                    NodeBounds { center: (lo + hi) * 0.5, half: (hi - lo) * 0.5 }
+                } else {
+                    NodeBounds::default()
+                }
+            })
+            .collect();
     }
 
     /// The vertices of a face's record.
@@ -304,6 +347,23 @@ impl Bsp {
     /// The faces in the subtree of `node` (its own and all below it).
     pub fn subtree_faces(&self, node: u32) -> u32 {
         self.subtree_faces[node as usize]
+    }
+
+    /// The nodes in the subtree of `node`: `node..node + subtree_nodes(node)`.
+    pub fn subtree_nodes(&self, node: u32) -> u32 {
+        self.subtree_nodes[node as usize]
+    }
+
+    /// The box around the faces of the subtree of `node`.
+    pub fn bounds(&self, node: u32) -> &NodeBounds {
+        &self.bounds[node as usize]
+    }
+
+    /// The faces of the subtree of `node`: one range of [`Bsp::faces`] (and of
+    /// [`Bsp::records`]), the faces being numbered in node order.
+    pub fn subtree_face_range(&self, node: u32) -> std::ops::Range<u32> {
+        let start = self.nodes[node as usize].faces.start;
+        start..start + self.subtree_faces[node as usize]
     }
 
     /// Numbers the faces in node order, so that each node's faces are a range and the
@@ -497,7 +557,8 @@ impl Bsp {
         self.walk(
             0,
             eye,
-            |_| false,
+            true,
+            |_| None,
             |p| {
                 if let Piece::Visit(v) = p {
                     visit(v)
@@ -508,11 +569,27 @@ impl Bsp {
 
     /// The front-to-back order of the subtree of `node` alone: the same visits that
     /// [`Bsp::traverse`] makes between entering and leaving that node.
-    pub fn traverse_subtree(&self, node: u32, eye: DVec3, mut visit: impl FnMut(Visit)) {
+    pub fn traverse_subtree(&self, node: u32, eye: DVec3, visit: impl FnMut(Visit)) {
+        self.traverse_subtree_culled(node, eye, true, |_| false, visit);
+    }
+
+    /// [`Bsp::traverse_subtree`], except that a node for which `cull` is true is
+    /// visited whole as one [`Visit::Culled`] in place of its subtree's visits, and
+    /// that the guests' places are visited only with `guests` (a frame with none
+    /// attached need not visit two or three places per node).
+    pub fn traverse_subtree_culled(
+        &self,
+        node: u32,
+        eye: DVec3,
+        guests: bool,
+        cull: impl Fn(u32) -> bool,
+        mut visit: impl FnMut(Visit),
+    ) {
         self.walk(
             node,
             eye,
-            |_| false,
+            guests,
+            |n| cull(n).then_some(Piece::Visit(Visit::Culled(n))),
             |p| {
                 if let Piece::Visit(v) = p {
                     visit(v)
@@ -531,12 +608,26 @@ impl Bsp {
             piece(Piece::Visit(Visit::Guests(NONE, Slot::Straddle)));
             return;
         }
-        self.walk(0, eye, |n| n != 0 && self.subtree_faces[n as usize] <= max_faces, piece);
+        self.walk(
+            0,
+            eye,
+            true,
+            |n| (n != 0 && self.subtree_faces[n as usize] <= max_faces).then_some(Piece::Subtree(n)),
+            piece,
+        );
     }
 
-    /// The traversal from `root`; a node for which `cut` is true is handed out
-    /// whole as [`Piece::Subtree`].
-    fn walk(&self, root: u32, eye: DVec3, cut: impl Fn(u32) -> bool, mut visit: impl FnMut(Piece)) {
+    /// The traversal from `root`; a node for which `cut` gives a piece is handed out
+    /// whole as that piece ([`Piece::Subtree`] or [`Visit::Culled`]).
+    /// Guests' places are visited only with `guests`.
+    fn walk(
+        &self,
+        root: u32,
+        eye: DVec3,
+        guests: bool,
+        cut: impl Fn(u32) -> Option<Piece>,
+        mut visit: impl FnMut(Piece),
+    ) {
         /// A node whose near side is being walked: what is left of it.
         struct Rest {
             node: u32,
@@ -553,8 +644,8 @@ impl Bsp {
         let mut n = root;
         'enter: loop {
             // Enter node `n`.
-            let mut rest = if cut(n) {
-                visit(Piece::Subtree(n));
+            let mut rest = if let Some(whole) = cut(n) {
+                visit(whole);
                 None
             } else {
                 let node = &self.nodes[n as usize];
@@ -570,13 +661,17 @@ impl Bsp {
                     n = near;
                     continue 'enter;
                 }
-                visit(Piece::Visit(Visit::Guests(n, near_slot)));
+                if guests {
+                    visit(Piece::Visit(Visit::Guests(n, near_slot)));
+                }
                 Some(rest)
             };
             // Leave the near side of `rest` (or of the nodes on the stack).
             loop {
                 let Some(Rest { node, faces, far, far_slot }) = rest.take().or_else(|| stack.pop()) else { return };
-                visit(Piece::Visit(Visit::Guests(node, Slot::Straddle)));
+                if guests {
+                    visit(Piece::Visit(Visit::Guests(node, Slot::Straddle)));
+                }
                 for f in faces {
                     visit(Piece::Visit(Visit::Face(f)));
                 }
@@ -584,7 +679,9 @@ impl Bsp {
                     n = far;
                     continue 'enter;
                 }
-                visit(Piece::Visit(Visit::Guests(node, far_slot)));
+                if guests {
+                    visit(Piece::Visit(Visit::Guests(node, far_slot)));
+                }
             }
         }
     }
@@ -623,6 +720,9 @@ pub enum Visit {
     Face(u32),
     /// The place of the guests (moving models, light points) attached at a node.
     Guests(u32, Slot),
+    /// The whole subtree of a node, rejected at once ([`Bsp::traverse_subtree_culled`]):
+    /// its faces are [`Bsp::subtree_face_range`], and none of its visits is made.
+    Culled(u32),
 }
 
 /// A piece of a front-to-back traversal cut for several workers ([`Bsp::pieces`]).

@@ -29,7 +29,7 @@ use glam::{DMat3, DMat4, DVec2, DVec3};
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::db::bsp::{Bsp, BspFace, BspVertex, FaceRecord, Piece, Plane, Slot, Visit};
+use crate::db::bsp::{Bsp, BspFace, BspVertex, FaceRecord, NodeBounds, Piece, Plane, Slot, Visit};
 use crate::db::{Eye, Scene, Screen};
 use crate::frame::{FrameList, FramePolygon, PrimitiveKind};
 use clip::Window;
@@ -278,6 +278,30 @@ impl View {
             | ((w < NEAR) as u8) << 4
     }
 
+    /// The view volume's five borders as world-space linear functions, for
+    /// rejecting whole boxes of the static tree ([`Frustum`]).
+    fn frustum(&self) -> Frustum {
+        let m = &self.world_to_eye;
+        let row = |i: usize| (DVec3::new(m.x_axis[i], m.y_axis[i], m.z_axis[i]), m.w_axis[i]);
+        let ((r0, t0), (r1, t1), (r2, t2)) = (row(0), row(1), row(2));
+        let (f, cx, cy) = (self.focal, self.center.x, self.center.y);
+        let (w, h) = (f64::from(self.screen.width), f64::from(self.screen.height));
+        // Each as `g = a . P + b`, a vertex's outcode bit set where `g > 0`:
+        // `hx < 0`, `hx > W Z`, `hy < 0`, `hy > H Z`, `Z < NEAR` (see `outcode`).
+        let borders = [
+            (-(r0 * f + r2 * cx), -(t0 * f + t2 * cx)),
+            (r0 * f + r2 * (cx - w), t0 * f + t2 * (cx - w)),
+            (-(r1 * f + r2 * cy), -(t1 * f + t2 * cy)),
+            (r1 * f + r2 * (cy - h), t1 * f + t2 * (cy - h)),
+            (-r2, -(t2 - NEAR)),
+        ];
+        Frustum {
+            borders,
+            coefficients: 1.0 + f.abs() + cx.abs() + cy.abs() + w + h,
+            translation: t0.abs() + t1.abs() + t2.abs() + NEAR,
+        }
+    }
+
     /// The P4 class and rejection of a sphere (eye-space centre, radius): `None` when
     /// wholly outside the view volume, else `Some(1 | 2 | 3)`.
     pub fn sphere_class(&self, c: DVec3, r: f64) -> Option<u8> {
@@ -309,6 +333,42 @@ impl View {
         } else {
             1
         })
+    }
+}
+
+/// The view volume as five world-space borders, to reject a box of the static tree
+/// whose every point lies outside one of them: then every vertex of every face in
+/// it has that outcode bit, and each such face would be rejected as outside.
+struct Frustum {
+    /// `(a, b)` per border: outside where `a . P + b > 0`.
+    borders: [(DVec3, f64); 5],
+    /// A bound on the magnitudes of the outcodes' coefficients (focal length,
+    /// centre, screen size; the view's rotation has entries at most 1).
+    coefficients: f64,
+    /// A bound on the view translation's part of an eye coordinate.
+    translation: f64,
+}
+
+/// A box counts as outside only when it is beyond a border by this much relative
+/// to the magnitudes in the outcodes' arithmetic. Each vertex's outcode is computed
+/// in `f64` with a relative error of a few 2^-52 (about 1e-15) of those
+/// magnitudes, the box test with as little: a margin of 1e-9 leaves the bits of
+/// every vertex in a rejected box certain; the faces of boxes nearer a border
+/// than that take the face-by-face path.
+const CULL_MARGIN: f64 = 1e-9;
+
+/// Subtrees with fewer faces are not tested against the view volume: the test
+/// (about 40 instructions) would cost more than the work it could save at the
+/// borders of the view.
+const CULL_MIN_FACES: u32 = 16;
+
+impl Frustum {
+    /// Whether the box lies wholly outside one border (by [`CULL_MARGIN`]).
+    #[inline]
+    fn rejects(&self, b: &NodeBounds) -> bool {
+        let size = (b.center.abs() + b.half).element_sum();
+        let margin = CULL_MARGIN * self.coefficients * (size + self.translation);
+        self.borders.iter().any(|(a, k)| a.dot(b.center) + k - a.abs().dot(b.half) > margin)
     }
 }
 
@@ -359,6 +419,10 @@ struct Shared<'a> {
     /// Guests sorted by (node, slot, distance from the eye).
     guests: Vec<(u32, u8, f64, Guest)>,
     sun_world: DVec3,
+    /// The view volume, for rejecting the static tree's subtrees.
+    frustum: Frustum,
+    /// Whether subtrees outside it are passed over ([`Shared::culls`]).
+    cull: bool,
     /// Instance counters (counted once, here).
     counters: GpCounters,
 }
@@ -444,8 +508,27 @@ pub fn frame_into(
     memory: &mut GpMemory,
     out: &mut FrameList,
 ) {
+    frame_with(db, eye, screen, config, counters, memory, out, true);
+}
+
+/// [`frame_into`], with or without its shortcuts in the traversal (`shortcuts`:
+/// passing over the static tree's subtrees outside the view volume, and over the
+/// guests' places in a frame with no guests; the tests compare the two).
+#[allow(clippy::too_many_arguments)]
+fn frame_with(
+    db: &Database,
+    eye: &Eye,
+    screen: Screen,
+    config: &GpConfig,
+    counters: &mut GpCounters,
+    memory: &mut GpMemory,
+    out: &mut FrameList,
+    shortcuts: bool,
+) {
     let view = View::new(eye, screen);
-    let shared = Shared::new(db, view, *config);
+    let mut shared = Shared::new(db, view, *config);
+    shared.cull = shortcuts;
+    let shared = shared;
     // Only the places where guests are attached this frame are visited (a
     // terrain's tree has twice as many empty places as faces).
     let mut place_bits = std::mem::take(&mut memory.guest_places);
@@ -457,6 +540,8 @@ pub fn frame_into(
         }
     }
     let places = &place_bits[..];
+    // With no guest attached this frame, their places need no visits.
+    let guests = !shared.guests.is_empty() || !shortcuts;
     // The priority order: the BSP's traversal, cut into pieces (whole subtrees and
     // the single visits above them) and the pieces into tasks of about
     // `FACES_PER_TASK` faces, each traversed and set up by one GP.
@@ -471,7 +556,7 @@ pub fn frame_into(
             faces += match piece {
                 Piece::Subtree(n) => db.bsp.subtree_faces(n),
                 Piece::Visit(Visit::Face(_)) => 1,
-                Piece::Visit(Visit::Guests(..)) => 0,
+                Piece::Visit(Visit::Guests(..) | Visit::Culled(_)) => 0,
             };
             pieces.push(piece);
             if faces >= FACES_PER_TASK {
@@ -497,7 +582,9 @@ pub fn frame_into(
         for &piece in pieces {
             match piece {
                 Piece::Visit(v) => b.visit(v),
-                Piece::Subtree(n) => db.bsp.traverse_subtree(n, view.position, |v| b.visit(v)),
+                Piece::Subtree(n) => {
+                    db.bsp.traverse_subtree_culled(n, view.position, guests, |n| shared.culls(n), |v| b.visit(v))
+                }
             }
         }
         b.counters
@@ -552,7 +639,11 @@ pub fn frame_into(
                 counters: GpCounters::default(),
                 scratch: Scratch::default(),
             };
-            db.bsp.traverse(view.position, |v| b.visit(v));
+            if db.bsp.nodes.is_empty() {
+                db.bsp.traverse(view.position, |v| b.visit(v));
+            } else {
+                db.bsp.traverse_subtree_culled(0, view.position, guests, |n| shared.culls(n), |v| b.visit(v));
+            }
             c = b.counters;
         }
     }
@@ -626,6 +717,8 @@ impl<'a> Shared<'a> {
             model_to_eye: Vec::with_capacity(db.instances.len()),
             guests: Vec::new(),
             sun_world: db.scene.env.sun.as_dvec3().normalize_or_zero(),
+            frustum: view.frustum(),
+            cull: true,
             counters: GpCounters::default(),
         };
         s.instances();
@@ -646,6 +739,20 @@ impl<'a> Shared<'a> {
             self.class.push(cl);
             self.model_to_eye.push(self.view.world_to_eye * info.model_to_world);
         }
+    }
+
+    /// Whether the subtree of node `n` of the static tree is passed over whole
+    /// ([`Visit::Culled`]): large enough, wholly outside the view volume, and with
+    /// no guest attached inside (a guest's place would be lost).
+    #[inline]
+    fn culls(&self, n: u32) -> bool {
+        let bsp = &self.db.bsp;
+        if !self.cull || bsp.subtree_faces(n) < CULL_MIN_FACES || !self.frustum.rejects(bsp.bounds(n)) {
+            return false;
+        }
+        let end = n + bsp.subtree_nodes(n);
+        let first = self.guests.partition_point(|g| g.0 < n);
+        self.guests.get(first).is_none_or(|g| g.0 >= end)
     }
 
     /// Attaches moving models and light points to the static tree.
@@ -683,6 +790,29 @@ impl FrameBuilder<'_> {
                 if self.places.get(n as usize).is_none_or(|&p| p >> slot as u8 & 1 != 0) {
                     self.emit_guests(n, slot);
                 }
+            }
+            Visit::Culled(n) => self.outside_faces(n),
+        }
+    }
+
+    /// The faces of a subtree wholly outside the view volume ([`Shared::culls`]):
+    /// counted as [`FrameBuilder::face`] counts them (every one that is not
+    /// back-facing would have every vertex beyond the same border), without their
+    /// transforms.
+    fn outside_faces(&mut self, n: u32) {
+        let f = self.f;
+        let bsp = &f.db.bsp;
+        let range = bsp.subtree_face_range(n);
+        let c = &mut self.counters;
+        for r in &bsp.records[range.start as usize..range.end as usize] {
+            if f.class[r.instance as usize].is_none() {
+                continue;
+            }
+            c.faces_in += 1;
+            if r.plane.distance(f.view.position) <= 0.0 {
+                c.backfacing += 1;
+            } else {
+                c.outside += 1;
             }
         }
     }
@@ -863,4 +993,55 @@ pub fn frame_of_scene(db: &Database, config: &GpConfig) -> (FrameList, GpCounter
     let mut counters = GpCounters::default();
     let f = frame(db, &db.scene.eye, db.scene.screen, config, &mut counters);
     (f, counters)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::db::builtin;
+
+    /// The traversal's shortcuts (passing over the subtrees outside the view
+    /// volume, and over the guests' places when there are none) change neither the
+    /// frame list (polygons, vertices, edge codes) nor a counter: built-in scenes
+    /// with and without light points and moving models, eyes turned every way (much
+    /// of the tree behind or beside them), one and two GPs.
+    #[test]
+    fn traversal_shortcuts_change_nothing() {
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut next = |lo: f32, hi: f32| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            lo + (hi - lo) * (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let mut culled_some = false;
+        // Terrain has no guests; default has light points and a moving model.
+        for (name, eyes) in [("default", 16), ("city", 16), ("terrain", 6)] {
+            let db = Database::new(builtin::scene(name).expect("built-in"));
+            let screen = Screen { width: 320, height: 200 };
+            for k in 0..eyes {
+                let mut eye = db.scene.eye;
+                if k > 0 {
+                    eye.position += glam::Vec3::new(next(-300.0, 300.0), next(-300.0, 300.0), next(0.0, 80.0));
+                    eye.heading = next(0.0, 360.0);
+                    eye.pitch = next(-80.0, 40.0);
+                    eye.roll = next(-30.0, 30.0);
+                    eye.fov = next(20.0, 100.0);
+                }
+                for threads in [1, 2] {
+                    let config = GpConfig { threads, ..GpConfig::default() };
+                    let run = |shortcuts: bool| {
+                        let (mut c, mut out) = (GpCounters::default(), FrameList::default());
+                        frame_with(&db, &eye, screen, &config, &mut c, &mut GpMemory::default(), &mut out, shortcuts);
+                        (out, c)
+                    };
+                    let (plain, fast) = (run(false), run(true));
+                    assert!(plain == fast, "{name}, eye {eye:?}, {threads} threads");
+                    let shared = Shared::new(&db, View::new(&eye, screen), config);
+                    culled_some |= (0..db.bsp.nodes.len() as u32).any(|n| shared.culls(n));
+                }
+            }
+        }
+        assert!(culled_some, "no subtree was culled: the test tests nothing");
+    }
 }

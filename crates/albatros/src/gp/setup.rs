@@ -150,17 +150,11 @@ impl Setup {
         let vstart = out.vertices.len() as u32;
         let estart = out.edges.len() as u32;
         let inv_z32 = FracLin { a: inv_z[0] as f32, b: inv_z[1] as f32, c: inv_z[2] as f32 };
-        let n = self.snapped.len();
-        out.vertices.reserve(n);
-        out.edges.reserve(n);
-        for (i, &a) in self.snapped.iter().enumerate() {
+        out.vertices.extend(self.snapped.iter().map(|a| {
             let (x, y) = (a.0.to_f32(), a.1.to_f32());
-            out.vertices.push(ScreenVertex { x, y, inv_w: inv_z32.eval(x, y) });
-            // The next vertex, round the outline (no `% n`: a division per edge).
-            let b = if i + 1 < n { self.snapped[i + 1] } else { self.snapped[0] };
-            let e = EdgeCode::new(a, b, inside_positive, self.root_side).expect("snapped vertices are distinct");
-            out.edges.push(e);
-        }
+            ScreenVertex { x, y, inv_w: inv_z32.eval(x, y) }
+        }));
+        EdgeCode::push_outline(&self.snapped, inside_positive, self.root_side, &mut out.edges);
         out.polygons.push(FramePolygon {
             vertices: vstart..out.vertices.len() as u32,
             edges: estart..out.edges.len() as u32,
@@ -234,8 +228,10 @@ pub fn snap_outline(outline: &[DVec2], s: &mut Vec<(ScreenFx, ScreenFx)>) -> Opt
     let sign = area2.signum();
     // Nearly every outline is strictly convex already (every turn the area's
     // way): then the passes below remove nothing, and each of their checks is the
-    // one made here (without their index arithmetic: a division per check).
-    if strictly_convex(s, sign) {
+    // one made here (without their index arithmetic: a division per check). A
+    // triangle needs no check: each of its turns `(b - a) x (c - b)` is exactly
+    // its doubled area, of the area's sign.
+    if s.len() == 3 || strictly_convex(s, sign) {
         return Some(sign > 0);
     }
     let mut i = 0;
@@ -275,11 +271,8 @@ pub fn push_flat_polygon(out: &mut FrameList, outline: &[DVec2], color: Rgb, inv
     let root_side = 4u32 << CellProcessors::root_level_for(out.width, out.height);
     let vstart = out.vertices.len() as u32;
     let estart = out.edges.len() as u32;
-    let n = snapped.len();
-    for i in 0..n {
-        out.vertices.push(ScreenVertex { x: snapped[i].0.to_f32(), y: snapped[i].1.to_f32(), inv_w: inv_z });
-        out.edges.push(EdgeCode::new(snapped[i], snapped[(i + 1) % n], inside_positive, root_side).expect("distinct"));
-    }
+    out.vertices.extend(snapped.iter().map(|a| ScreenVertex { x: a.0.to_f32(), y: a.1.to_f32(), inv_w: inv_z }));
+    EdgeCode::push_outline(&snapped, inside_positive, root_side, &mut out.edges);
     out.polygons.push(FramePolygon {
         vertices: vstart..out.vertices.len() as u32,
         edges: estart..out.edges.len() as u32,

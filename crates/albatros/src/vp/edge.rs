@@ -36,6 +36,12 @@ pub const EDGE_FRAC_BITS: u32 = 32;
 pub const ROOT_V_BITS: u32 = 16;
 /// The largest root level the numbers support: root side `4 * 2^11 = 8192` pixels.
 pub const MAX_ROOT_LEVEL: u32 = 11;
+/// The largest root side in pixels, `4 * 2^MAX_ROOT_LEVEL`.
+const MAX_ROOT_SIDE: u32 = 4 << MAX_ROOT_LEVEL;
+/// [`EdgeCode::new`]'s fast path takes snapped coordinates of magnitude below
+/// `2^FAST_COORD_BITS` (2^18 pixels): then `(t - aw) du 2^8` is below
+/// `2^27 2^27 2^8 = 2^62` for `t` up to [`MAX_ROOT_SIDE`] pixels.
+const FAST_COORD_BITS: u32 = 26;
 
 /// A snapped screen coordinate: pixels in 24.8 fixed point.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
@@ -133,12 +139,131 @@ impl ExactLine {
     }
 }
 
+/// Whether [`EdgeCode::new_fast`] takes edges between `points`: every coordinate
+/// of magnitude below `2^FAST_COORD_BITS` and the root side a power of two at
+/// most [`MAX_ROOT_SIDE`].
+#[inline(always)]
+fn fast_bounds(points: &[(ScreenFx, ScreenFx)], root_side: u32) -> bool {
+    // `x ^ (x >> 31)` is `|x|` or `|x| - 1`: all magnitudes tested by one OR.
+    let mag = points.iter().fold(0, |m, p| m | (p.0 .0 ^ (p.0 .0 >> 31)) | (p.1 .0 ^ (p.1 .0 >> 31)));
+    mag >> FAST_COORD_BITS == 0 && root_side <= MAX_ROOT_SIDE && root_side.is_power_of_two()
+}
+
 impl EdgeCode {
     /// The code of the line through `a` and `b` (snapped, distinct), for a root cell
     /// of `root_side = 4 * 2^L` pixels; `inside_positive` tells whether the polygon
     /// lies where the cross product `(b - a) x (p - a)` is positive (screen axes,
     /// y down). Returns `None` when `a == b`.
     pub fn new(
+        a: (ScreenFx, ScreenFx),
+        b: (ScreenFx, ScreenFx),
+        inside_positive: bool,
+        root_side: u32,
+    ) -> Option<Self> {
+        if fast_bounds(&[a, b], root_side) {
+            Self::new_fast(a, b, inside_positive, root_side.trailing_zeros())
+        } else {
+            Self::new_general(a, b, inside_positive, root_side)
+        }
+    }
+
+    /// Appends the codes of the closed outline `points` to `out`: the edge from each
+    /// point to the next, and from the last back to the first ([`EdgeCode::new`] of
+    /// each, the bounds of its fast path checked once for the whole outline).
+    ///
+    /// # Panics
+    /// If two consecutive points are equal (a snapped outline has none).
+    pub fn push_outline(
+        points: &[(ScreenFx, ScreenFx)],
+        inside_positive: bool,
+        root_side: u32,
+        out: &mut Vec<EdgeCode>,
+    ) {
+        let (Some(&first), Some(&last)) = (points.first(), points.last()) else { return };
+        // Each point with the next one, then the last with the first: one
+        // reservation and no bounds check per edge.
+        out.reserve(points.len());
+        if fast_bounds(points, root_side) {
+            let root_bits = root_side.trailing_zeros();
+            let code = |a, b| Self::new_fast(a, b, inside_positive, root_bits).expect("consecutive points differ");
+            out.extend(points.windows(2).map(|w| code(w[0], w[1])));
+            out.push(code(last, first));
+        } else {
+            let code = |a, b| Self::new_general(a, b, inside_positive, root_side).expect("consecutive points differ");
+            out.extend(points.windows(2).map(|w| code(w[0], w[1])));
+            out.push(code(last, first));
+        }
+    }
+
+    /// [`EdgeCode::new`] for endpoints and root side within [`fast_bounds`] (outside
+    /// them its products may overflow), the root side given as `2^root_bits` pixels.
+    ///
+    /// V's values at the root borders are `floor((au dw + (t - aw) du) 2^8 / dw)`
+    /// (see `v_at` in [`EdgeCode::new_general`]). `au 2^8` is an integer, so it comes
+    /// out of the floor: `au 2^8 + floor((t - aw) du 2^8 / dw)`, whose numerator
+    /// then fits an `i64` with no check per product. The GP makes 3 codes per
+    /// triangle: the checked products, the `i128` fallback, the divisions' guards
+    /// and a call per edge were about 240 instructions an edge on `many`.
+    #[inline(always)]
+    fn new_fast(
+        a: (ScreenFx, ScreenFx),
+        b: (ScreenFx, ScreenFx),
+        inside_positive: bool,
+        root_bits: u32,
+    ) -> Option<Self> {
+        let (ax, ay) = (i64::from(a.0 .0), i64::from(a.1 .0));
+        let (bx, by) = (i64::from(b.0 .0), i64::from(b.1 .0));
+        let (dx, dy) = (bx - ax, by - ay);
+        let vertical = dy.abs() > dx.abs();
+        let tg = if vertical { Tg::Vertical } else { Tg::Horizontal };
+        // The side of greater V: for a vertical edge the point a + (1, 0), whose cross
+        // product is -dy; for a horizontal edge a + (0, 1), cross product dx.
+        let greater_side_positive = if vertical { dy < 0 } else { dx > 0 };
+        let lr = greater_side_positive == inside_positive;
+        // E = dy (x - ax) - dx (y - ay), then oriented towards greater V: flipped
+        // exactly where the greater side is the positive one.
+        let (ca, cb) = if greater_side_positive { (-dy, dx) } else { (dy, -dx) };
+        let cc = -(ca * ax + cb * ay);
+        let (pa, pb) = ((a.0 .0, a.1 .0), (b.0 .0, b.1 .0));
+        let ends = if pa <= pb { [pa, pb] } else { [pb, pa] };
+        // Swap to V = coordinate along (u), t = coordinate across (w), from the end
+        // of smaller t (the canonical order: the rounding cannot depend on the
+        // direction): `(au, aw)` that end, `(du, dw)` towards the other.
+        let (au, aw, du, dw) = if vertical { (ax, ay, dx, dy) } else { (ay, ax, dy, dx) };
+        let (au, aw, du, dw) = if dw < 0 { (au + du, aw + dw, -du, -dw) } else { (au, aw, du, dw) };
+        if dw <= 0 {
+            // Only when a == b (|dw| >= |du|); the test also tells the compiler that
+            // the divisor is positive, so it drops the divisions' guards.
+            return None;
+        }
+        let scale_bits = ROOT_V_BITS - SNAP_BITS;
+        // floor(n / dw) for dw > 0 (the quotient and remainder of one division).
+        let floor_div = |n: i64| n / dw - i64::from(n % dw < 0);
+        // The numerators at t = 0 and t = root_side (in snapped units, a power of
+        // two): `(t - aw) du 2^8`, the second the first plus `t du 2^8`.
+        let n1 = (-aw * du) << scale_bits;
+        let n2 = n1 + (du << (root_bits + SNAP_BITS + scale_bits));
+        let (q1, q2) = (floor_div(n1), floor_div(n2));
+        let shift = EDGE_FRAC_BITS - ROOT_V_BITS;
+        let origin = ((au << scale_bits) + q1) << shift;
+        // Exact: the difference has `shift` >= 16 zero low bits and the root side
+        // is a power of two at most 2^13.
+        let slope = ((q2 - q1) << shift) >> root_bits;
+        Some(Self {
+            tg,
+            lr,
+            origin: EdgeCoord(origin),
+            slope: EdgeCoord(slope),
+            exact: ExactLine { a: ca, b: cb, c: cc, ends },
+        })
+    }
+
+    /// [`EdgeCode::new`] for any coordinates and root side the numbers support (the
+    /// definition: checked products and an `i128` fallback): the GP's polygons,
+    /// which lie in the window, never leave [`fast_bounds`].
+    #[cold]
+    #[inline(never)]
+    fn new_general(
         a: (ScreenFx, ScreenFx),
         b: (ScreenFx, ScreenFx),
         inside_positive: bool,
@@ -229,6 +354,163 @@ mod tests {
 
     fn p(x: f64, y: f64) -> (ScreenFx, ScreenFx) {
         (ScreenFx::from_f64(x), ScreenFx::from_f64(y))
+    }
+
+    /// [`EdgeCode::new`] as first written (the definition): checked products, an
+    /// `i128` fallback and Euclidean divisions, for any inputs.
+    fn new_plain(
+        a: (ScreenFx, ScreenFx),
+        b: (ScreenFx, ScreenFx),
+        inside_positive: bool,
+        root_side: u32,
+    ) -> Option<EdgeCode> {
+        let (ax, ay) = (i64::from(a.0 .0), i64::from(a.1 .0));
+        let (bx, by) = (i64::from(b.0 .0), i64::from(b.1 .0));
+        let (dx, dy) = (bx - ax, by - ay);
+        if dx == 0 && dy == 0 {
+            return None;
+        }
+        let tg = if dy.abs() > dx.abs() { Tg::Vertical } else { Tg::Horizontal };
+        let greater_side_positive = match tg {
+            Tg::Vertical => -dy > 0,
+            Tg::Horizontal => dx > 0,
+        };
+        let lr = greater_side_positive == inside_positive;
+        let (au, aw, bu, bw) = match tg {
+            Tg::Vertical => (ax, ay, bx, by),
+            Tg::Horizontal => (ay, ax, by, bx),
+        };
+        let (au, aw, bu, bw) = if aw <= bw { (au, aw, bu, bw) } else { (bu, bw, au, aw) };
+        let (du, dw) = (bu - au, bw - aw);
+        let scale_bits = ROOT_V_BITS - SNAP_BITS;
+        let v_at = |t: i64| -> i128 {
+            let exact64 = au
+                .checked_mul(dw)
+                .and_then(|p| (t - aw).checked_mul(du).and_then(|q| p.checked_add(q)))
+                .and_then(|n| n.checked_mul(1 << scale_bits));
+            match exact64 {
+                Some(num) => i128::from(num.div_euclid(dw)),
+                None => ((i128::from(au) * i128::from(dw) + i128::from(t - aw) * i128::from(du)) << scale_bits)
+                    .div_euclid(i128::from(dw)),
+            }
+        };
+        let side = i128::from(root_side);
+        let v1 = v_at(0);
+        let v2 = v_at(i64::from(root_side) * i64::from(SNAP_ONE));
+        let shift = EDGE_FRAC_BITS - ROOT_V_BITS;
+        let origin = (v1 << shift) as i64;
+        let span = (v2 - v1) << shift;
+        let slope = (span / side) as i64;
+        let (mut ca, mut cb) = (dy, -dx);
+        let flip = match tg {
+            Tg::Vertical => ca < 0,
+            Tg::Horizontal => cb < 0,
+        };
+        if flip {
+            (ca, cb) = (-ca, -cb);
+        }
+        let cc = -(ca * ax + cb * ay);
+        let (pa, pb) = ((a.0 .0, a.1 .0), (b.0 .0, b.1 .0));
+        let ends = if pa <= pb { [pa, pb] } else { [pb, pa] };
+        Some(EdgeCode {
+            tg,
+            lr,
+            origin: EdgeCoord(origin),
+            slope: EdgeCoord(slope),
+            exact: ExactLine { a: ca, b: cb, c: cc, ends },
+        })
+    }
+
+    /// A snapped coordinate from a proptest choice: small, on a screen, near the
+    /// fast path's bound either side, or anywhere up to `2^30` (beyond, the exact
+    /// line's `c` overflows `i64` in the definition itself).
+    fn coordinate() -> impl proptest::strategy::Strategy<Value = i32> {
+        use proptest::prelude::*;
+        let edge = 1i32 << FAST_COORD_BITS;
+        const FAR: i32 = 1 << 30;
+        prop_oneof![
+            -64i32..64,
+            -(4 << SNAP_BITS)..(8192 << SNAP_BITS),
+            (edge - 300)..(edge + 300),
+            (-edge - 300)..(-edge + 300),
+            -FAR..FAR,
+            Just(-FAR),
+            Just(FAR),
+        ]
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(20_000))]
+
+        /// The fast path gives the definition's code, bit for bit (and the same
+        /// `None`), over random and extreme endpoints, both orientations and every
+        /// root level (and one beyond, which takes the general path).
+        #[test]
+        fn new_is_the_plain_definition(
+            ax in coordinate(),
+            ay in coordinate(),
+            bx in coordinate(),
+            by in coordinate(),
+            near in proptest::prelude::any::<(bool, bool, i8, i8)>(),
+            inside in proptest::prelude::any::<bool>(),
+            level in 0u32..=MAX_ROOT_LEVEL + 1,
+        ) {
+            let root_side = 4u32 << level;
+            // Half the cases: b near a (short edges, equal ends, 45-degree ties).
+            let (bx, by) = match near {
+                (true, flat, ddx, ddy) => {
+                    let ddy = if flat { ddx } else { ddy };
+                    (ax.saturating_add(i32::from(ddx)), ay.saturating_add(i32::from(ddy)))
+                }
+                _ => (bx, by),
+            };
+            let (a, b) = ((ScreenFx(ax), ScreenFx(ay)), (ScreenFx(bx), ScreenFx(by)));
+            proptest::prop_assert_eq!(EdgeCode::new(a, b, inside, root_side), new_plain(a, b, inside, root_side));
+        }
+    }
+
+    #[test]
+    fn new_is_the_plain_definition_on_a_grid() {
+        // Every pair of points of a small grid around the origin and around a far
+        // corner, every root level: ties of |dx| = |dy|, both directions.
+        for &(ox, oy) in &[(0i32, 0i32), (1919 << SNAP_BITS, 1079 << SNAP_BITS), (-5, 7)] {
+            let pts: Vec<(ScreenFx, ScreenFx)> =
+                (-4..=4).flat_map(|x| (-4..=4).map(move |y| (ScreenFx(ox + x * 37), ScreenFx(oy + y * 53)))).collect();
+            for level in 0..=MAX_ROOT_LEVEL {
+                for &a in &pts {
+                    for &b in &pts {
+                        for inside in [false, true] {
+                            assert_eq!(EdgeCode::new(a, b, inside, 4 << level), new_plain(a, b, inside, 4 << level));
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn push_outline_is_new_per_edge() {
+        // Outlines inside and outside the fast path's bounds, either way round.
+        let far = 1 << FAST_COORD_BITS;
+        let outlines: [&[(i32, i32)]; 4] = [
+            &[(0, 0), (2560, 13), (1300, 2700)],
+            &[(100, 100), (90, 5000), (-4000, 5100), (-4100, 120), (-2000, -7)],
+            &[(0, 0), (far + 5, 3), (7, far - 1)],
+            &[(-far - 9, 0), (4, -far), (1 << 29, 1 << 29)],
+        ];
+        for pts in outlines {
+            let pts: Vec<(ScreenFx, ScreenFx)> = pts.iter().map(|&(x, y)| (ScreenFx(x), ScreenFx(y))).collect();
+            for level in [0, 5, MAX_ROOT_LEVEL, MAX_ROOT_LEVEL + 1] {
+                for inside in [false, true] {
+                    let mut got = vec![new_plain(pts[0], pts[1], inside, 4).unwrap()];
+                    EdgeCode::push_outline(&pts, inside, 4 << level, &mut got);
+                    let n = pts.len();
+                    let want: Vec<EdgeCode> =
+                        (0..n).map(|i| new_plain(pts[i], pts[(i + 1) % n], inside, 4 << level).unwrap()).collect();
+                    assert_eq!(got[1..], want[..], "{pts:?} level {level}");
+                }
+            }
+        }
     }
 
     #[test]
