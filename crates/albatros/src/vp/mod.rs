@@ -90,12 +90,13 @@ pub struct VideoProcessor {
     pub column_work: Vec<u32>,
 }
 
-/// The units of [`VideoProcessor::column_work`], estimates of the work the VP did, in
-/// tenths of the instructions of a cell's colour computation: a cell crossed by
-/// edges (the GQ's descent to it and the SPP's look-ups), a cell wholly inside a
-/// polygon (the mask walk and the SPP's step) and a cell with visible pixels (the
-/// CC and the VB). Measured on the built-in scenes at 1920 x 1080 with callgrind
-/// (BENCHMARKS.md, session 5).
+/// The weights of [`VideoProcessor::column_work`]: rough estimates of the work the VP
+/// does for a cell, one unit about 120 instructions on the machine of session 5
+/// (BENCHMARKS.md): a cell crossed by edges (its share of the GQ's splits and the
+/// SPP's look-ups, ~1000), a cell wholly inside a polygon (the mask walk and the SPP's
+/// step, ~250), a cell with visible pixels (the CC's ~740 and the VB's ~465), a column
+/// of cells' background pass. Only their proportions matter: the strip matrix turns
+/// each strip's tallies into its VP's measured time.
 pub mod work {
     /// A cell with active edges.
     pub const EDGE_CELL: u32 = 8;
