@@ -101,6 +101,9 @@ pub struct EdgeCode {
     pub slope: EdgeCoord,
     /// The exact line through the snapped endpoints, for [`super::tables::SppMode::Exact`].
     pub exact: ExactLine,
+    /// [`ExactLine::fits_32`] of `exact`, found once per edge: the SPP's 32-bit path
+    /// for the exact sets at vertex pixels takes the edge without checking per cell.
+    pub exact32: bool,
 }
 
 /// The exact line through an edge's snapped endpoints: `E(x, y) = a x + b y + c`,
@@ -120,7 +123,24 @@ pub struct ExactLine {
     pub ends: [(i32, i32); 2],
 }
 
+/// [`ExactLine::fits_32`]: coefficients below this in magnitude (`2^22`).
+pub const EXACT32_COEFFICIENT_LIMIT: u64 = 1 << 22;
+/// [`ExactLine::fits_32`]: endpoint coordinates below this in magnitude (`2^30`).
+pub const EXACT32_END_LIMIT: u32 = 1 << 30;
+
 impl ExactLine {
+    /// Whether the SPP's 32-bit vertex paths take the line: `|a|, |b|` below
+    /// [`EXACT32_COEFFICIENT_LIMIT`] (its 16 subpixel offsets fit 32-bit lanes) and
+    /// every endpoint coordinate below [`EXACT32_END_LIMIT`] (its distances to a cell
+    /// do).
+    #[inline]
+    pub fn fits_32(&self) -> bool {
+        let small = |c: i32| c.unsigned_abs() < EXACT32_END_LIMIT;
+        self.a.unsigned_abs() < EXACT32_COEFFICIENT_LIMIT
+            && self.b.unsigned_abs() < EXACT32_COEFFICIENT_LIMIT
+            && self.ends.iter().all(|&(x, y)| small(x) && small(y))
+    }
+
     /// Whether the point `(x, y)` (snapped units) lies on the side of greater V, with
     /// points on the line decided as if moved by `(e, e^2)` for an infinitesimal
     /// `e > 0`. One perturbation for every line: at a vertex shared by many edges the
@@ -249,12 +269,17 @@ impl EdgeCode {
         // Exact: the difference has `shift` >= 16 zero low bits and the root side
         // is a power of two at most 2^13.
         let slope = ((q2 - q1) << shift) >> root_bits;
+        // `|a|, |b|` are `|dy|, |dx|`; the ends are below `2^FAST_COORD_BITS`, which
+        // is below `EXACT32_END_LIMIT`.
+        const _: () = assert!(1 << FAST_COORD_BITS <= EXACT32_END_LIMIT);
+        let exact32 = (dx.unsigned_abs() | dy.unsigned_abs()) < EXACT32_COEFFICIENT_LIMIT;
         Some(Self {
             tg,
             lr,
             origin: EdgeCoord(origin),
             slope: EdgeCoord(slope),
             exact: ExactLine { a: ca, b: cb, c: cc, ends },
+            exact32,
         })
     }
 
@@ -331,13 +356,8 @@ impl EdgeCode {
         let cc = -(ca * ax + cb * ay);
         let (pa, pb) = ((a.0 .0, a.1 .0), (b.0 .0, b.1 .0));
         let ends = if pa <= pb { [pa, pb] } else { [pb, pa] };
-        Some(Self {
-            tg,
-            lr,
-            origin: EdgeCoord(origin),
-            slope: EdgeCoord(slope),
-            exact: ExactLine { a: ca, b: cb, c: cc, ends },
-        })
+        let exact = ExactLine { a: ca, b: cb, c: cc, ends };
+        Some(Self { tg, lr, origin: EdgeCoord(origin), slope: EdgeCoord(slope), exact, exact32: exact.fits_32() })
     }
 
     /// V on the integer pixel line `t` (a row `y = t` for a vertical edge, a column
@@ -412,13 +432,8 @@ mod tests {
         let cc = -(ca * ax + cb * ay);
         let (pa, pb) = ((a.0 .0, a.1 .0), (b.0 .0, b.1 .0));
         let ends = if pa <= pb { [pa, pb] } else { [pb, pa] };
-        Some(EdgeCode {
-            tg,
-            lr,
-            origin: EdgeCoord(origin),
-            slope: EdgeCoord(slope),
-            exact: ExactLine { a: ca, b: cb, c: cc, ends },
-        })
+        let exact = ExactLine { a: ca, b: cb, c: cc, ends };
+        Some(EdgeCode { tg, lr, origin: EdgeCoord(origin), slope: EdgeCoord(slope), exact, exact32: exact.fits_32() })
     }
 
     /// A snapped coordinate from a proptest choice: small, on a screen, near the

@@ -15,7 +15,7 @@
 //! Bit layout of a pixel's set: bit `4 sy + sx`, subpixel column `sx`, row `sy` from
 //! the pixel's top-left. A cell's 16 pixels are indexed `4 y + x` likewise.
 
-use super::edge::{EdgeCode, ExactLine, Tg, EDGE_FRAC_BITS, SNAP_ONE};
+use super::edge::{EdgeCode, ExactLine, Tg, EDGE_FRAC_BITS, EXACT32_END_LIMIT, SNAP_ONE};
 use super::gq::{Fragment, Share};
 use super::tables::{SppMode, SppRowTable, ROW_PART_WORDS, ROW_Q_COUNT, ROW_Q_MAX, ROW_Q_MIN, SPP_V_BITS};
 #[cfg(test)]
@@ -316,7 +316,7 @@ impl SubpixelProcessors {
             // The pixels of this cell near an endpoint of the edge, where the exact
             // rule replaces the table (about one edge in seven on default: out of line).
             if self.vertex_exact && near_end_cell(&e.exact, frag.px, frag.py) {
-                words = vertex_words(&e.exact, e.lr, frag.px, frag.py, vertical, words);
+                words = vertex_words(e, frag.px, frag.py, vertical, words);
             }
             let code = if vertical { &mut rows } else { &mut columns };
             for (c, w) in code.iter_mut().zip(words) {
@@ -642,7 +642,7 @@ fn exact_into(line: &ExactLine, lr: bool, px: u32, py: u32, near: u16, vertical:
         // to have (on x86-64 it always has: the check is a constant).
         #[allow(unsafe_code, reason = "a function compiled for SSE2, after detection")]
         unsafe {
-            return exact_into_sse2(line, lr, px, py, near, vertical, words);
+            return exact_into_sse2(line, lr, i64::from(!on_line_greater(line)), px, py, near, vertical, words);
         }
     }
     let mut near = near;
@@ -687,7 +687,18 @@ impl ExactLine32 {
 /// (tested), in about a fifth of its instructions.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "sse2")]
-fn exact_into_sse2(line: &ExactLine, lr: bool, px: u32, py: u32, near: u16, vertical: bool, words: &mut [u64; 4]) {
+#[allow(clippy::too_many_arguments, reason = "one edge's numbers and the cell's, all in registers")]
+#[inline]
+fn exact_into_sse2(
+    line: &ExactLine,
+    lr: bool,
+    threshold: i64,
+    px: u32,
+    py: u32,
+    near: u16,
+    vertical: bool,
+    words: &mut [u64; 4],
+) {
     use std::arch::x86_64::{
         _mm_add_epi32, _mm_cmpgt_epi32, _mm_movemask_epi8, _mm_packs_epi16, _mm_packs_epi32, _mm_set1_epi32,
         _mm_set_epi32,
@@ -702,9 +713,7 @@ fn exact_into_sse2(line: &ExactLine, lr: bool, px: u32, py: u32, near: u16, vert
     let row2 = _mm_add_epi32(row1, down);
     let row3 = _mm_add_epi32(row2, down);
     // As `exact_set`: the greater side is `E >= 0` where a centre on the line belongs
-    // to it, else `E >= 1`.
-    let on_line = line.a > 0 || (line.a == 0 && line.b > 0);
-    let threshold = i64::from(!on_line);
+    // to it, else `E >= 1` (`threshold`, 0 or 1, from `on_line_greater`).
     let flip = if lr { 0 } else { 0xFFFF };
     // E at the first centre of the cell's first pixel; a pixel further is `SNAP_ONE a`
     // (`SNAP_ONE b`) more. (Every term is below 2^48: no overflow.)
@@ -743,13 +752,53 @@ fn near_end_cell(line: &ExactLine, px: u32, py: u32) -> bool {
 /// the cell at pixel `(px, py)`. Out of line: most edges have no endpoint near the
 /// cell, and inlined its set-up was hoisted into every fragment's.
 #[inline(never)]
-fn vertex_words(line: &ExactLine, lr: bool, px: u32, py: u32, vertical: bool, words: [u64; 4]) -> [u64; 4] {
+fn vertex_words(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64; 4]) -> [u64; 4] {
+    #[cfg(target_arch = "x86_64")]
+    if e.exact32 && (px | py) < CELL_LIMIT_32 && std::is_x86_feature_detected!("sse4.1") {
+        // SAFETY: `vertex_words_sse41` only needs SSE4.1 (and the SSE2 it implies),
+        // which the processor was just found to have.
+        #[allow(unsafe_code, reason = "a function compiled for SSE4.1, after detection")]
+        unsafe {
+            return vertex_words_sse41(e, px, py, vertical, words);
+        }
+    }
     let mut words = words;
-    let vertex = vertex_pixels_fast(line, px, py);
+    let vertex = vertex_pixels_fast(&e.exact, px, py);
     if vertex != 0 {
-        exact_into(line, lr, px, py, vertex, vertical, &mut words);
+        exact_into(&e.exact, e.lr, px, py, vertex, vertical, &mut words);
     }
     words
+}
+
+/// Cells at pixels below this (in both coordinates) take the 32-bit vertex paths
+/// ([`VertexWindow::fits`]): their borders in snapped units are below `2^30`.
+const CELL_LIMIT_32: u32 = EXACT32_END_LIMIT / SNAP_ONE as u32;
+
+/// [`vertex_words`] for an edge whose exact line fits 32-bit lanes
+/// ([`EdgeCode::exact32`], checked once per edge by the GP, and the cell's pixel below
+/// [`CELL_LIMIT_32`]): the vertex pixels in SSE4.1 ([`vertex_pixels_sse41`]) and their
+/// sets in SSE2 ([`exact_into_sse2`]), with no check of the line's numbers per cell.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "sse4.1")]
+fn vertex_words_sse41(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64; 4]) -> [u64; 4] {
+    let mut words = words;
+    let vertex = vertex_pixels_sse41(&e.exact, px, py);
+    if vertex != 0 {
+        // An edge's line is oriented with `a > 0` (vertical) or `b > 0` (horizontal),
+        // so `a == 0` only with `b > 0`: the centres on the line are on the greater
+        // side exactly when `a >= 0` (the rule of `exact_set`).
+        debug_assert_eq!(e.exact.a >= 0, on_line_greater(&e.exact));
+        let threshold = i64::from(e.exact.a < 0);
+        exact_into_sse2(&e.exact, e.lr, threshold, px, py, vertex, vertical, &mut words);
+    }
+    words
+}
+
+/// Whether a point on the exact line lies on its greater side (the perturbation of
+/// [`ExactLine::greater_side`]).
+#[inline(always)]
+fn on_line_greater(line: &ExactLine) -> bool {
+    line.a > 0 || (line.a == 0 && line.b > 0)
 }
 
 /// The subpixels of pixel `(x, y)` on the polygon's side of an exact line: the
@@ -765,8 +814,7 @@ fn exact_set(line: &ExactLine, lr: bool, x: u32, y: u32) -> u16 {
     let y0 = i64::from(y) * i64::from(SNAP_ONE) + HALF_SUB;
     // A centre on the line: the one perturbation of `greater_side` decides, so the
     // greater side is `E >= 0` when it holds there and `E >= 1` otherwise.
-    let on_line = line.a > 0 || (line.a == 0 && line.b > 0);
-    let threshold = i64::from(!on_line);
+    let threshold = i64::from(!on_line_greater(line));
     let (step_x, step_y) = (line.a * SUB, line.b * SUB);
     // E at the row's centres, less the threshold: a centre is on the greater side
     // when this is not negative. Steps by additions, four centres of a row at once.
@@ -1089,6 +1137,51 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// [`vertex_words`] (the 32-bit path an edge's `exact32` flag opens, and the checked
+    /// one) puts [`exact_set`] at the [`vertex_pixels`] of the plain definition: edges
+    /// with endpoints in and around the cell, long ones (`exact32` false beyond `2^22`
+    /// snapped units) and lines through subpixel centres; and an edge's line has
+    /// `a >= 0` exactly when its points on the line are on the greater side.
+    #[test]
+    fn vertex_words_are_the_plain_sets() {
+        use super::super::edge::ScreenFx;
+        let mut next = xorshift(0x0BAD_CAFE_F00D_1234);
+        let one = i64::from(SNAP_ONE);
+        let mut long = 0;
+        for k in 0..100_000 {
+            let (px, py) = (4 * next(2048) as u32, 4 * next(2048) as u32);
+            let mut point = |near: bool| {
+                let (x, y) = if near {
+                    (i64::from(px) * one + next(8 * one) - 2 * one, i64::from(py) * one + next(8 * one) - 2 * one)
+                } else {
+                    let far = [8192 * one, 1 << 23, 1 << 26][next(3) as usize];
+                    (next(2 * far) - far / 2, next(2 * far) - far / 2)
+                };
+                let snap = |v: i64| if k % 4 == 0 { v - v.rem_euclid(one / 4) + one / 8 } else { v };
+                (ScreenFx(snap(x) as i32), ScreenFx(snap(y) as i32))
+            };
+            let (a, b) = (point(true), point(k % 3 == 0));
+            let Some(e) = EdgeCode::new(a, b, k % 2 == 0, 8192) else { continue };
+            assert_eq!(e.exact.a >= 0, on_line_greater(&e.exact), "{e:?}");
+            long += usize::from(!e.exact32);
+            let words: [u64; 4] = std::array::from_fn(|_| next(i64::MAX) as u64 ^ (next(2) as u64) << 63);
+            for vertical in [false, true] {
+                let mut want = words;
+                let vertex = vertex_pixels(&e.exact, px, py);
+                for pixel in 0..16 {
+                    if vertex >> pixel & 1 == 1 {
+                        let set = exact_set(&e.exact, e.lr, px + (pixel & 3), py + (pixel >> 2));
+                        put_set(&mut want, pixel, vertical, set);
+                    }
+                }
+                assert_eq!(vertex_words(&e, px, py, vertical, words), want, "{e:?} ({px}, {py})");
+                let checked = EdgeCode { exact32: false, ..e };
+                assert_eq!(vertex_words(&checked, px, py, vertical, words), want, "{e:?} ({px}, {py})");
+            }
+        }
+        assert!(long > 1000, "{long}");
     }
 
     /// The SSE2 row-table indices are the portable ones: V and slopes of every size
