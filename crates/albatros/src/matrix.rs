@@ -333,9 +333,12 @@ impl Matrix {
 
     /// Renders `frame` and reads it out into `image` while `beside` runs on the same
     /// threads, and returns what `beside` returns: P1's double-buffered frame
-    /// memory, the GP setting up the next frame in one half while the VPs read the
-    /// other (see [`crate::pipeline`]). The threads take whichever work is waiting,
-    /// so the GP's serial part overlaps the VPs' work instead of leaving cores idle.
+    /// memory, the GP setting up the next frame in one half while the VPs work from
+    /// the other (see [`crate::pipeline`]). The VPs render first, on every thread
+    /// (their shares are even, and one VP is one long task: anything beside them
+    /// would leave one VP late); then `beside` and the readout run together, both
+    /// cut into many small tasks that the threads take as they come, so the GP's
+    /// serial parts overlap the readout's bands instead of leaving a core idle.
     /// The image is the one [`Self::render_frame`] and [`Self::read_out_into`] give.
     pub fn render_beside<R: Send>(
         &mut self,
@@ -347,11 +350,8 @@ impl Matrix {
         // Inside the pool, the nested `install`s of `render_frame` and
         // `read_out_into` run in place on the current worker.
         pool.install(|| {
-            rayon::join(beside, || {
-                self.render_frame(frame);
-                self.read_out_into(image);
-            })
-            .0
+            self.render_frame(frame);
+            rayon::join(beside, || self.read_out_into(image)).0
         })
     }
 

@@ -4,10 +4,13 @@
 //!
 //! Here both run on the matrix's threads ([`Matrix::render_beside`]): with one
 //! thread a step costs what the GP and the VPs cost one after the other; with more,
-//! the threads take whichever work is waiting, so the GP's serial part (the BSP
-//! traversal) and the VPs' tails overlap instead of leaving cores idle. A frame is
-//! shown one step after it is set up (the hardware's latency of one frame period),
-//! and its image is byte for byte the one the stages give run one after another.
+//! the VPs render frame `n` on every thread (their shares are even), then the GP's
+//! tasks for frame `n + 1` and the readout's bands of frame `n` run together, the
+//! threads taking whichever is waiting, so the GP's serial parts and the readout
+//! overlap instead of leaving cores idle (measured in BENCHMARKS.md, session 5). A
+//! frame is shown one step after it is set up (the hardware's latency of one frame
+//! period), and its image is byte for byte the one the stages give run one after
+//! another.
 
 use crate::db::{Eye, Screen};
 use crate::frame::FrameList;
