@@ -269,29 +269,31 @@ impl Matrix {
     fn balance(&mut self, width: u32) -> Vec<(u32, u32)> {
         use crate::vp::{spp::CELL_SIDE, work::BACKGROUND_COLUMN};
         let columns = self.vps[0].column_work.len();
+        let cells = |vp: &VideoProcessor| {
+            let (x0, x1) = vp.gq.share.strip;
+            (x0 / CELL_SIDE) as usize..(x1.div_ceil(CELL_SIDE) as usize).min(columns)
+        };
+        // Each strip's tallies, and its VP's seconds per unit.
         let mut cost = vec![0.0f64; columns];
         self.scales.resize(self.vps.len(), 0.0);
         for (k, vp) in self.vps.iter().enumerate() {
-            let (x0, x1) = vp.gq.share.strip;
-            let cells = (x0 / CELL_SIDE) as usize..(x1.div_ceil(CELL_SIDE) as usize).min(columns);
-            let tally = |c: usize| f64::from(vp.column_work[c]) + BACKGROUND_COLUMN as f64;
-            let total: f64 = cells.clone().map(tally).sum();
+            let cells = cells(vp);
+            for (c, &w) in cost[cells.clone()].iter_mut().zip(&vp.column_work[cells.clone()]) {
+                *c = f64::from(w) + BACKGROUND_COLUMN as f64;
+            }
+            let total: f64 = cost[cells].iter().sum();
             if total > 0.0 && self.times[k] > 0.0 {
                 let scale = self.times[k] / total;
                 // Smoothed: one frame's time is noisy on a shared machine.
                 self.scales[k] = if self.scales[k] > 0.0 { 0.5 * (self.scales[k] + scale) } else { scale };
             }
         }
-        // A VP not timed yet (an empty strip) counts at the others' mean scale.
+        // In seconds; a VP not timed yet (an empty strip) at the others' mean scale.
         let timed: Vec<f64> = self.scales.iter().copied().filter(|&s| s > 0.0).collect();
         let mean = if timed.is_empty() { 1.0 } else { timed.iter().sum::<f64>() / timed.len() as f64 };
         for (k, vp) in self.vps.iter().enumerate() {
             let scale = if self.scales[k] > 0.0 { self.scales[k] } else { mean };
-            let (x0, x1) = vp.gq.share.strip;
-            let cells = (x0 / CELL_SIDE) as usize..(x1.div_ceil(CELL_SIDE) as usize).min(columns);
-            for (c, &w) in cost[cells.clone()].iter_mut().zip(&vp.column_work[cells]) {
-                *c = (f64::from(w) + BACKGROUND_COLUMN as f64) * scale;
-            }
+            cost[cells(vp)].iter_mut().for_each(|c| *c *= scale);
         }
         even_strips(&cost, self.vps.len(), self.tile, width)
     }

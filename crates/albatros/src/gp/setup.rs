@@ -208,6 +208,21 @@ impl Setup {
 /// needs a strictly convex polygon), and returns the orientation (`true`: the interior
 /// is where `(b - a) x (p - a) > 0`), or `None` for a degenerate outline.
 pub fn snap_outline(outline: &[DVec2], s: &mut Vec<(ScreenFx, ScreenFx)>) -> Option<bool> {
+    let sign = snap_points(outline, s)?;
+    // Nearly every outline is strictly convex already (every turn the area's
+    // way): then the passes of `drop_turns` remove nothing, and each of their checks
+    // is the one made here (without their index arithmetic: a division per check).
+    // A triangle needs no check: each of its turns `(b - a) x (c - b)` is exactly
+    // its doubled area, of the area's sign.
+    if s.len() == 3 || strictly_convex(s, sign) {
+        return Some(sign > 0);
+    }
+    drop_turns(s, sign)
+}
+
+/// The first step of [`snap_outline`]: the outline snapped into `s` without
+/// repeated points; the sign of its doubled area, or `None` if it has none.
+fn snap_points(outline: &[DVec2], s: &mut Vec<(ScreenFx, ScreenFx)>) -> Option<i64> {
     s.clear();
     for p in outline {
         let q = (ScreenFx::from_f64(p.x), ScreenFx::from_f64(p.y));
@@ -222,18 +237,13 @@ pub fn snap_outline(outline: &[DVec2], s: &mut Vec<(ScreenFx, ScreenFx)>) -> Opt
         return None;
     }
     let area2 = shoelace(s);
-    if area2 == 0 {
-        return None;
-    }
-    let sign = area2.signum();
-    // Nearly every outline is strictly convex already (every turn the area's
-    // way): then the passes below remove nothing, and each of their checks is the
-    // one made here (without their index arithmetic: a division per check). A
-    // triangle needs no check: each of its turns `(b - a) x (c - b)` is exactly
-    // its doubled area, of the area's sign.
-    if s.len() == 3 || strictly_convex(s, sign) {
-        return Some(sign > 0);
-    }
+    (area2 != 0).then_some(area2.signum())
+}
+
+/// The last step of [`snap_outline`]: removes every vertex whose turn is not of the
+/// area's `sign` (collinear or reflex), until none is left; the orientation, or
+/// `None` if the outline degenerates.
+fn drop_turns(s: &mut Vec<(ScreenFx, ScreenFx)>, sign: i64) -> Option<bool> {
     let mut i = 0;
     while s.len() >= 3 && i < s.len() {
         let n = s.len();
@@ -326,54 +336,8 @@ mod tests {
     /// [`snap_outline`] as first written: the passes alone, with no convexity
     /// check before them.
     fn snap_outline_plain(outline: &[DVec2], s: &mut Vec<(ScreenFx, ScreenFx)>) -> Option<bool> {
-        s.clear();
-        for p in outline {
-            let q = (ScreenFx::from_f64(p.x), ScreenFx::from_f64(p.y));
-            if s.last() != Some(&q) {
-                s.push(q);
-            }
-        }
-        while s.len() > 1 && s.first() == s.last() {
-            s.pop();
-        }
-        if s.len() < 3 {
-            return None;
-        }
-        let n = s.len();
-        let area2: i64 = (0..n)
-            .map(|i| {
-                let (a, b) = (s[i], s[(i + 1) % n]);
-                i64::from(a.0 .0) * i64::from(b.1 .0) - i64::from(b.0 .0) * i64::from(a.1 .0)
-            })
-            .sum();
-        if area2 == 0 {
-            return None;
-        }
-        let sign = area2.signum();
-        let mut i = 0;
-        while s.len() >= 3 && i < s.len() {
-            let n = s.len();
-            let (a, b, c) = (s[(i + n - 1) % n], s[i], s[(i + 1) % n]);
-            if cross(a, b, c) * sign <= 0 {
-                s.remove(i);
-                i = i.saturating_sub(1);
-            } else {
-                i += 1;
-            }
-        }
-        let mut changed = true;
-        while changed && s.len() >= 3 {
-            changed = false;
-            let n = s.len();
-            for k in 0..n {
-                if cross(s[(k + n - 1) % n], s[k], s[(k + 1) % n]) * sign <= 0 {
-                    s.remove(k);
-                    changed = true;
-                    break;
-                }
-            }
-        }
-        (s.len() >= 3 && shoelace(s) != 0).then_some(sign > 0)
+        let sign = snap_points(outline, s)?;
+        drop_turns(s, sign)
     }
 
     /// A small xorshift generator (the tests need no better).

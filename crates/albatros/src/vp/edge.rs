@@ -339,11 +339,9 @@ impl EdgeCode {
         let origin = (v1 << shift) as i64;
         let span = (v2 - v1) << shift;
         // Exact: span has `shift` >= 16 zero low bits and root_side <= 2^13, a power
-        // of two; so the quotient is the arithmetic shift (an `i128` division is a
-        // call of some hundred instructions, once per edge per frame).
+        // of two (the fast path takes the quotient as a shift).
         debug_assert_eq!(span % side, 0);
-        debug_assert!(root_side.is_power_of_two());
-        let slope = (span >> root_side.trailing_zeros()) as i64;
+        let slope = (span / side) as i64;
         // E = dy (x - ax) - dx (y - ay), then oriented towards greater V.
         let (mut ca, mut cb) = (dy, -dx);
         let flip = match tg {
@@ -374,66 +372,6 @@ mod tests {
 
     fn p(x: f64, y: f64) -> (ScreenFx, ScreenFx) {
         (ScreenFx::from_f64(x), ScreenFx::from_f64(y))
-    }
-
-    /// [`EdgeCode::new`] as first written (the definition): checked products, an
-    /// `i128` fallback and Euclidean divisions, for any inputs.
-    fn new_plain(
-        a: (ScreenFx, ScreenFx),
-        b: (ScreenFx, ScreenFx),
-        inside_positive: bool,
-        root_side: u32,
-    ) -> Option<EdgeCode> {
-        let (ax, ay) = (i64::from(a.0 .0), i64::from(a.1 .0));
-        let (bx, by) = (i64::from(b.0 .0), i64::from(b.1 .0));
-        let (dx, dy) = (bx - ax, by - ay);
-        if dx == 0 && dy == 0 {
-            return None;
-        }
-        let tg = if dy.abs() > dx.abs() { Tg::Vertical } else { Tg::Horizontal };
-        let greater_side_positive = match tg {
-            Tg::Vertical => -dy > 0,
-            Tg::Horizontal => dx > 0,
-        };
-        let lr = greater_side_positive == inside_positive;
-        let (au, aw, bu, bw) = match tg {
-            Tg::Vertical => (ax, ay, bx, by),
-            Tg::Horizontal => (ay, ax, by, bx),
-        };
-        let (au, aw, bu, bw) = if aw <= bw { (au, aw, bu, bw) } else { (bu, bw, au, aw) };
-        let (du, dw) = (bu - au, bw - aw);
-        let scale_bits = ROOT_V_BITS - SNAP_BITS;
-        let v_at = |t: i64| -> i128 {
-            let exact64 = au
-                .checked_mul(dw)
-                .and_then(|p| (t - aw).checked_mul(du).and_then(|q| p.checked_add(q)))
-                .and_then(|n| n.checked_mul(1 << scale_bits));
-            match exact64 {
-                Some(num) => i128::from(num.div_euclid(dw)),
-                None => ((i128::from(au) * i128::from(dw) + i128::from(t - aw) * i128::from(du)) << scale_bits)
-                    .div_euclid(i128::from(dw)),
-            }
-        };
-        let side = i128::from(root_side);
-        let v1 = v_at(0);
-        let v2 = v_at(i64::from(root_side) * i64::from(SNAP_ONE));
-        let shift = EDGE_FRAC_BITS - ROOT_V_BITS;
-        let origin = (v1 << shift) as i64;
-        let span = (v2 - v1) << shift;
-        let slope = (span / side) as i64;
-        let (mut ca, mut cb) = (dy, -dx);
-        let flip = match tg {
-            Tg::Vertical => ca < 0,
-            Tg::Horizontal => cb < 0,
-        };
-        if flip {
-            (ca, cb) = (-ca, -cb);
-        }
-        let cc = -(ca * ax + cb * ay);
-        let (pa, pb) = ((a.0 .0, a.1 .0), (b.0 .0, b.1 .0));
-        let ends = if pa <= pb { [pa, pb] } else { [pb, pa] };
-        let exact = ExactLine { a: ca, b: cb, c: cc, ends };
-        Some(EdgeCode { tg, lr, origin: EdgeCoord(origin), slope: EdgeCoord(slope), exact, exact32: exact.fits_32() })
     }
 
     /// A snapped coordinate from a proptest choice: small, on a screen, near the
@@ -480,7 +418,7 @@ mod tests {
                 _ => (bx, by),
             };
             let (a, b) = ((ScreenFx(ax), ScreenFx(ay)), (ScreenFx(bx), ScreenFx(by)));
-            proptest::prop_assert_eq!(EdgeCode::new(a, b, inside, root_side), new_plain(a, b, inside, root_side));
+            proptest::prop_assert_eq!(EdgeCode::new(a, b, inside, root_side), EdgeCode::new_general(a, b, inside, root_side));
         }
     }
 
@@ -495,7 +433,10 @@ mod tests {
                 for &a in &pts {
                     for &b in &pts {
                         for inside in [false, true] {
-                            assert_eq!(EdgeCode::new(a, b, inside, 4 << level), new_plain(a, b, inside, 4 << level));
+                            assert_eq!(
+                                EdgeCode::new(a, b, inside, 4 << level),
+                                EdgeCode::new_general(a, b, inside, 4 << level)
+                            );
                         }
                     }
                 }
@@ -517,11 +458,12 @@ mod tests {
             let pts: Vec<(ScreenFx, ScreenFx)> = pts.iter().map(|&(x, y)| (ScreenFx(x), ScreenFx(y))).collect();
             for level in [0, 5, MAX_ROOT_LEVEL, MAX_ROOT_LEVEL + 1] {
                 for inside in [false, true] {
-                    let mut got = vec![new_plain(pts[0], pts[1], inside, 4).unwrap()];
+                    let mut got = vec![EdgeCode::new_general(pts[0], pts[1], inside, 4).unwrap()];
                     EdgeCode::push_outline(&pts, inside, 4 << level, &mut got);
                     let n = pts.len();
-                    let want: Vec<EdgeCode> =
-                        (0..n).map(|i| new_plain(pts[i], pts[(i + 1) % n], inside, 4 << level).unwrap()).collect();
+                    let want: Vec<EdgeCode> = (0..n)
+                        .map(|i| EdgeCode::new_general(pts[i], pts[(i + 1) % n], inside, 4 << level).unwrap())
+                        .collect();
                     assert_eq!(got[1..], want[..], "{pts:?} level {level}");
                 }
             }

@@ -1095,8 +1095,8 @@ impl VideoBuffer {
     /// `image`, in bands of rows on the current rayon pool, reading each tile from the
     /// memory of the VP that owns it: the bytes of [`Self::copy_shares_from`] then
     /// [`Self::read_out_parallel_into`], without the copy (4 MiB a frame at 1920 x
-    /// 1080). Only for the 8-bit log code with tiles of whole F2 runs (or of whole
-    /// rows), each tile owned by exactly one share, where it returns `true`;
+    /// 1080). Only for the 8-bit log code with tiles of whole F2 runs, each tile
+    /// owned by exactly one share, where it returns `true`;
     /// otherwise it does nothing and returns `false`. `parts`: the buffers (same
     /// size and mode) with their shares, of one tile side.
     pub fn read_out_shares_into(parts: &[(&VideoBuffer, &Share)], opts: &Readout, image: &mut Image) -> bool {
@@ -1104,11 +1104,7 @@ impl VideoBuffer {
         let Some(&(first, first_share)) = parts.first() else { return false };
         let tile = first_share.tile as usize;
         let (w, h) = (first.width as usize, first.height as usize);
-        // The grid of the shares' tiles: rows of `tile` pixels, and columns of
-        // `tile` pixels, or the whole width when the matrix has one column.
-        let column =
-            if parts.iter().all(|(_, share)| share.p == 1 && share.strip == Share::ALL_COLUMNS) { w } else { tile };
-        if !tile.is_power_of_two() || (column < w && column % LOG8_RUN != 0) || w == 0 || h == 0 {
+        if !tile.is_power_of_two() || !tile.is_multiple_of(LOG8_RUN) || w == 0 || h == 0 {
             return false;
         }
         let mut memories = Vec::with_capacity(parts.len());
@@ -1125,15 +1121,14 @@ impl VideoBuffer {
         let Memory::Log8 { scale, .. } = &first.memory else { return false };
         // Per tile, the VP that owns it and the end of the run of tiles of the row
         // that VP owns from there (P3's interleave: the tile; a strip: the strip), looked
-        // up once a frame: a segment then costs a shift, a division by a constant
-        // and a read.
+        // up once a frame: a segment then costs two shifts and a read.
         let shift = tile.trailing_zeros();
-        let (tiles_w, tiles_h) = (w.div_ceil(column), h.div_ceil(tile));
+        let (tiles_w, tiles_h) = (w.div_ceil(tile), h.div_ceil(tile));
         let mut owner = vec![(u32::MAX, 0u32); tiles_w * tiles_h];
         for ty in 0..tiles_h {
             let row = &mut owner[ty * tiles_w..][..tiles_w];
             for (tx, o) in row.iter_mut().enumerate() {
-                let (x, y) = ((tx * column) as u32, (ty * tile) as u32);
+                let (x, y) = ((tx * tile) as u32, (ty * tile) as u32);
                 let mut owners = parts.iter().enumerate().filter(|(_, (_, share))| share.owns_pixel(x, y));
                 match (owners.next(), owners.next()) {
                     (Some((k, _)), None) => o.0 = k as u32,
@@ -1145,12 +1140,12 @@ impl VideoBuffer {
                 if tx + 1 < tiles_w && row[tx + 1].0 != row[tx].0 {
                     end = tx + 1;
                 }
-                row[tx].1 = ((end * column).min(w)) as u32;
+                row[tx].1 = ((end * tile).min(w)) as u32;
             }
         }
         // Pixels `x0..` of row `y` to the end of their VP's run of tiles.
         let segment = |y: usize, x0: usize| {
-            let (k, end) = owner[(y >> shift) * tiles_w + x0 / column];
+            let (k, end) = owner[(y >> shift) * tiles_w + (x0 >> shift)];
             &memories[k as usize][y * w + x0..y * w + end as usize]
         };
         let pairs = scale.pair_means.as_ref().expect("the 8-bit scale has the pair table");
