@@ -693,6 +693,10 @@ struct PairMeans {
     softplus: Box<[u8; LOG8_ADDRESSES]>,
     /// `T[0]`, in the line buffer's `i16`.
     ln2: i16,
+    /// `T[4 k]` at `k = 0..=255`: `T` at the difference of two loaded codes `k`
+    /// apart (quarter codes), for the first pass by arithmetic
+    /// ([`PairMeans::mean_codes`]); 0 from `k = 247` on (past the table's end).
+    code_softplus: [u8; 1 << PAIR_MEANS_BITS],
 }
 
 impl PairMeans {
@@ -709,7 +713,23 @@ impl PairMeans {
         for (d, t) in softplus.iter_mut().enumerate() {
             *t = u8::try_from(arith.softplus(d as i32)).expect("the 8-bit table's entries fit a byte");
         }
-        Self { means, softplus, ln2: i16::try_from(scale.ln2).expect("T[0] fits an i16") }
+        let code_softplus = std::array::from_fn(|k| softplus[FINE_PER_CODE as usize * k]);
+        Self { means, softplus, ln2: i16::try_from(scale.ln2).expect("T[0] fits an i16"), code_softplus }
+    }
+
+    /// The half sum of two stored codes by arithmetic: [`LogArith::mean`] of the
+    /// loaded codes, `hi + T[hi - lo] - T[0]` raised to code 1, with `hi - lo = 4 (qh
+    /// - ql)` for two codes (`T` from [`Self::code_softplus`]) and past the table's
+    /// end (`T = 0`) with zero's code; two zeros give [`LOG8_ZERO`]. The same as the
+    /// table's entry (tested on every pair); the definition of the SIMD first pass.
+    #[cfg(test)]
+    fn mean_codes(&self, a: u8, b: u8) -> i16 {
+        let (hi, lo) = (a.max(b), a.min(b));
+        if hi == 0 {
+            return LOG8_ZERO;
+        }
+        let t = if lo == 0 { 0 } else { self.code_softplus[usize::from(hi - lo)] };
+        (i16::from(hi) * FINE_PER_CODE as i16 - self.ln2 + i16::from(t)).max(FINE_PER_CODE as i16)
     }
 
     /// The half sum of two stored codes.
@@ -2006,8 +2026,107 @@ fn read_out_log8(
 /// at multiples of [`LOG8_RUN`] or at 0 and end there or at the row's end). A
 /// matrix's readout reads each tile's pixels from the VP that owns it, with no copy
 /// of the memories into one.
+///
+/// Its first pass by the best copy the processor runs ([`Log8Pass1`]): the portable
+/// one, or AVX-512 (BW and VBMI) by arithmetic on the codes; the same half sums, so
+/// the same bytes (tested against each other and the reference readout).
 #[allow(clippy::too_many_arguments, reason = "the readout's registers, passed as they are")]
 fn read_out_log8_from<'a>(
+    w: usize,
+    h: usize,
+    segment: &impl Fn(usize, usize) -> &'a [Word8],
+    filter: bool,
+    pairs: &PairMeans,
+    table: &[u8; LOG8_ADDRESSES],
+    rows: std::ops::Range<usize>,
+    out: &mut [u8],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(pass1) = Log8Avx512::detect() {
+        return read_out_log8_rows(pass1, w, h, segment, filter, pairs, table, rows, out);
+    }
+    read_out_log8_rows(Log8Portable, w, h, segment, filter, pairs, table, rows, out);
+}
+
+/// F2's first pass over a run of [`LOG8_RUN`] pixels that is not flat: `line[i]` the
+/// [`PairMeans::mean_words`] of `row[i]` and `below[i]` (the spare lane 0).
+trait Log8Pass1: Copy {
+    /// The run's half sums.
+    fn pass1(self, line: &mut [Line8; LOG8_RUN], row: &[Word8; LOG8_RUN], below: &[Word8; LOG8_RUN], pairs: &PairMeans);
+}
+
+/// [`Log8Pass1`] for the build's target, whatever the processor: the pair table.
+#[derive(Clone, Copy)]
+struct Log8Portable;
+
+impl Log8Pass1 for Log8Portable {
+    #[inline(always)]
+    fn pass1(
+        self,
+        line: &mut [Line8; LOG8_RUN],
+        row: &[Word8; LOG8_RUN],
+        below: &[Word8; LOG8_RUN],
+        pairs: &PairMeans,
+    ) {
+        // The table's addresses `a << 8 | b` of every component side by side: the
+        // bytes of the two runs interleaved, then one read per component. (The
+        // spare lanes stay 0.)
+        let (a, b) = (row.map(u32::to_le_bytes), below.map(u32::to_le_bytes));
+        let (a, b) = (a.as_flattened(), b.as_flattened());
+        let mut address = [[0u8; 2]; 4 * LOG8_RUN];
+        for (k, address) in address.iter_mut().enumerate() {
+            *address = [b[k], a[k]];
+        }
+        for (i, l) in line.iter_mut().enumerate() {
+            for (ch, l) in l[..3].iter_mut().enumerate() {
+                *l = pairs.means[usize::from(u16::from_le_bytes(address[4 * i + ch]))];
+            }
+        }
+    }
+}
+
+/// [`Log8Pass1`] in AVX-512 ([`read_out_log8_pass1_avx512`]); made only by
+/// [`Log8Avx512::detect`], on a processor that has the features.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+struct Log8Avx512(());
+
+#[cfg(target_arch = "x86_64")]
+impl Log8Avx512 {
+    /// The token if the processor has AVX-512 F, BW and VBMI.
+    #[inline]
+    fn detect() -> Option<Self> {
+        (std::is_x86_feature_detected!("avx512f")
+            && std::is_x86_feature_detected!("avx512bw")
+            && std::is_x86_feature_detected!("avx512vbmi"))
+        .then_some(Self(()))
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Log8Pass1 for Log8Avx512 {
+    #[inline(always)]
+    fn pass1(
+        self,
+        line: &mut [Line8; LOG8_RUN],
+        row: &[Word8; LOG8_RUN],
+        below: &[Word8; LOG8_RUN],
+        pairs: &PairMeans,
+    ) {
+        // SAFETY: a `Log8Avx512` is made only by `detect`, after the processor was
+        // found to have the features the function is compiled for.
+        #[allow(unsafe_code, reason = "a function compiled for AVX-512, on a processor found to have it")]
+        unsafe {
+            read_out_log8_pass1_avx512(line, row, below, pairs)
+        }
+    }
+}
+
+/// [`read_out_log8_from`]'s rows with the first pass of `pass1`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments, reason = "the readout's registers, passed as they are")]
+fn read_out_log8_rows<'a>(
+    pass1: impl Log8Pass1,
     w: usize,
     h: usize,
     segment: &impl Fn(usize, usize) -> &'a [Word8],
@@ -2052,7 +2171,7 @@ fn read_out_log8_from<'a>(
             let (row, below) = (segment(y, x0), segment(below_y, x0));
             let n = row.len().min(below.len());
             let (line, flat_runs) = (&mut line[x0..x0 + n], &mut flat_runs[x0 / LOG8_RUN..]);
-            read_out_log8_pass1(line, &row[..n], &below[..n], flat_runs, &mut flat_mean, pairs);
+            read_out_log8_pass1(pass1, line, &row[..n], &below[..n], flat_runs, &mut flat_mean, pairs);
             x0 += n;
         }
         // Pass 2: half sums of horizontally adjacent ones, a run at a time; the
@@ -2136,6 +2255,7 @@ fn pattern(rgb: [u8; 3]) -> [u64; 3] {
 /// half sum, which the next flat run most likely repeats.
 #[inline(always)]
 fn read_out_log8_pass1(
+    pass1: impl Log8Pass1,
     line: &mut [Line8],
     row: &[Word8],
     below: &[Word8],
@@ -2164,20 +2284,7 @@ fn read_out_log8_pass1(
             }
             l[0] = flat_mean.1;
         } else {
-            // The table's addresses `a << 8 | b` of every component side by side: the
-            // bytes of the two runs interleaved, then one read per component. (The
-            // spare lanes stay 0.)
-            let (a, b) = (a.map(u32::to_le_bytes), b.map(u32::to_le_bytes));
-            let (a, b) = (a.as_flattened(), b.as_flattened());
-            let mut address = [[0u8; 2]; 4 * LOG8_RUN];
-            for (k, address) in address.iter_mut().enumerate() {
-                *address = [b[k], a[k]];
-            }
-            for (i, l) in l.iter_mut().enumerate() {
-                for (ch, l) in l[..3].iter_mut().enumerate() {
-                    *l = pairs.means[usize::from(u16::from_le_bytes(address[4 * i + ch]))];
-                }
-            }
+            pass1.pass1(l, a, b, pairs);
         }
     }
     if whole < row.len() {
@@ -2210,6 +2317,60 @@ fn read_out_log8_pass2(
             let j = 4 * i + ch;
             let t = pairs.softplus[usize::from(d[j])];
             *o = table[usize::from(PairMeans::address(hi[j], t))];
+        }
+    }
+}
+
+/// [`Log8Portable::pass1`] in AVX-512 by [`PairMeans::mean_codes`] on the bytes of
+/// the run (one register: 16 words, 64 codes): the larger and smaller codes and their
+/// difference in bytes, `T[4 k]` by two two-register byte permutes (128 entries
+/// each) chosen by the difference's top bit, 0 where the smaller is zero; then in
+/// 16-bit lanes `4 hi - T[0] + T` raised to code 1, [`LOG8_ZERO`] where both are
+/// zero and 0 in the spare lanes: 32 lanes, 8 pixels' [`Line8`]s, per register.
+/// No table reads: the pair table's 128 KiB does not stay in L1.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+fn read_out_log8_pass1_avx512(
+    line: &mut [Line8; LOG8_RUN],
+    row: &[Word8; LOG8_RUN],
+    below: &[Word8; LOG8_RUN],
+    pairs: &PairMeans,
+) {
+    const QUARTER: usize = 64;
+    // SAFETY: `row`, `below` and the table's quarters are 64 bytes each, which the
+    // loads read.
+    #[allow(unsafe_code, reason = "unaligned loads of arrays of a register's size")]
+    let (a, b, t) = unsafe {
+        let t = |k: usize| _mm512_loadu_si512(pairs.code_softplus[QUARTER * k..].as_ptr().cast());
+        (_mm512_loadu_si512(row.as_ptr().cast()), _mm512_loadu_si512(below.as_ptr().cast()), [t(0), t(1), t(2), t(3)])
+    };
+    let (hi, lo) = (_mm512_max_epu8(a, b), _mm512_min_epu8(a, b));
+    let d = _mm512_sub_epi8(hi, lo);
+    // `T[4 d]`: entries `d mod 128` of the table's first or second half.
+    let first = _mm512_permutex2var_epi8(t[0], d, t[1]);
+    let second = _mm512_permutex2var_epi8(t[2], d, t[3]);
+    let t = _mm512_mask_blend_epi8(_mm512_movepi8_mask(d), first, second);
+    let t = _mm512_maskz_mov_epi8(_mm512_test_epi8_mask(lo, lo), t);
+    // Each pixel's R, G, B lanes (the fourth, the word's zero byte, set to 0).
+    const COMPONENTS: u32 = 0x7777_7777;
+    let (code_one, ln2) = (_mm512_set1_epi16(FINE_PER_CODE as i16), _mm512_set1_epi16(pairs.ln2));
+    for half in 0..2 {
+        let (hi, t) = if half == 0 {
+            (_mm512_castsi512_si256(hi), _mm512_castsi512_si256(t))
+        } else {
+            (_mm512_extracti64x4_epi64::<1>(hi), _mm512_extracti64x4_epi64::<1>(t))
+        };
+        let (hi, t) = (_mm512_cvtepu8_epi16(hi), _mm512_cvtepu8_epi16(t));
+        let v = _mm512_add_epi16(_mm512_sub_epi16(_mm512_slli_epi16::<2>(hi), ln2), t);
+        let v = _mm512_max_epi16(v, code_one);
+        let v = _mm512_mask_mov_epi16(v, _mm512_testn_epi16_mask(hi, hi), _mm512_set1_epi16(LOG8_ZERO));
+        let v = _mm512_maskz_mov_epi16(COMPONENTS, v);
+        let dst: &mut [Line8; LOG8_RUN / 2] =
+            (&mut line[LOG8_RUN / 2 * half..][..LOG8_RUN / 2]).try_into().expect("8 pixels");
+        // SAFETY: `dst` is 64 bytes, which the store writes.
+        #[allow(unsafe_code, reason = "an unaligned store of a register into an array of its size")]
+        unsafe {
+            _mm512_storeu_si512(dst.as_mut_ptr().cast(), v)
         }
     }
 }
@@ -2506,6 +2667,68 @@ mod tests {
                             vb.read_out_rows(&opts, 3 * k..(3 * k + 3).min(h), out);
                         }
                         assert_eq!(banded, expect, "{mode} {w}x{h} filter {filter}, bands of 3 rows");
+                    }
+                }
+            }
+        }
+    }
+
+    /// The first pass by arithmetic on codes gives the pair table on every pair.
+    #[test]
+    fn mean_codes_match_pair_table() {
+        let pairs = LogScale::get(PAIR_MEANS_BITS).pair_means.as_ref().expect("the 8-bit scale has the pair table");
+        for a in 0..=255u8 {
+            for b in 0..=255u8 {
+                assert_eq!(pairs.mean_codes(a, b), pairs.mean(a.into(), b.into()), "codes {a} and {b}");
+            }
+        }
+    }
+
+    /// Every copy of the 8-bit readout's first pass the processor can run gives the
+    /// portable copy's bytes: random codes with flat and non-flat runs (long runs of
+    /// one word, one component changing, zeros, Q1, neighbours far apart), odd widths
+    /// (a short last run, rows of fewer pixels than a run), bands ending at the
+    /// bottom row.
+    #[test]
+    fn read_out_log8_copies_match_portable() {
+        let s = LogScale::get(PAIR_MEANS_BITS);
+        let pairs = s.pair_means.as_ref().expect("the 8-bit scale has the pair table");
+        let mut rng = Rng(0x0F2_A5);
+        for (w, h, change) in [(1, 3, 4), (15, 4, 3), (16, 5, 40), (17, 6, 2), (33, 9, 8), (100, 13, 300), (129, 7, 30)]
+        {
+            let mut word = 0u32;
+            let codes: Vec<Word8> = (0..w * h)
+                .map(|_| {
+                    match rng.next() % change {
+                        0 => word = Word8::pack([rng.code(255), rng.code(255), rng.code(255)]),
+                        1 => word = [0, 0x00FF_FFFF, 0x00FF_0000, 0x0001_00FF][(rng.next() % 4) as usize],
+                        2 => word ^= 0xFF << (8 * (rng.next() % 3)),
+                        _ => {}
+                    }
+                    word
+                })
+                .collect();
+            for gamma in [2.2, 1.0] {
+                let table = log8_gamma_table(&s.gamma_table(gamma), s.ln2);
+                let table: &[u8; LOG8_ADDRESSES] = table.as_slice().try_into().expect("the 8-bit gamma table");
+                let segment = |y: usize, x0: usize| &codes[y * w + x0..(y + 1) * w];
+                for filter in [true, false] {
+                    for rows in [0..h, h - 1..h, h / 2..h, 0..1] {
+                        let mut expect = vec![0u8; 3 * w * rows.len()];
+                        read_out_log8_rows(
+                            Log8Portable,
+                            w,
+                            h,
+                            &segment,
+                            filter,
+                            pairs,
+                            table,
+                            rows.clone(),
+                            &mut expect,
+                        );
+                        let mut got = vec![0u8; expect.len()];
+                        read_out_log8_from(w, h, &segment, filter, pairs, table, rows.clone(), &mut got);
+                        assert_eq!(got, expect, "{w}x{h} rows {rows:?} gamma {gamma} filter {filter}");
                     }
                 }
             }
