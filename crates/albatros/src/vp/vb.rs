@@ -2027,7 +2027,7 @@ fn read_out_log8(
 /// matrix's readout reads each tile's pixels from the VP that owns it, with no copy
 /// of the memories into one.
 ///
-/// Its first pass by the best copy the processor runs ([`Log8Pass1`]): the portable
+/// Its first pass by the best copy the processor runs ([`Log8Passes`]): the portable
 /// one, or AVX-512 (BW and VBMI) by arithmetic on the codes; the same half sums, so
 /// the same bytes (tested against each other and the reference readout).
 #[allow(clippy::too_many_arguments, reason = "the readout's registers, passed as they are")]
@@ -2042,24 +2042,37 @@ fn read_out_log8_from<'a>(
     out: &mut [u8],
 ) {
     #[cfg(target_arch = "x86_64")]
-    if let Some(pass1) = Log8Avx512::detect() {
-        return read_out_log8_rows(pass1, w, h, segment, filter, pairs, table, rows, out);
+    if let Some(passes) = Log8Avx512::detect() {
+        return read_out_log8_rows(passes, w, h, segment, filter, pairs, table, rows, out);
     }
     read_out_log8_rows(Log8Portable, w, h, segment, filter, pairs, table, rows, out);
 }
 
 /// F2's first pass over a run of [`LOG8_RUN`] pixels that is not flat: `line[i]` the
 /// [`PairMeans::mean_words`] of `row[i]` and `below[i]` (the spare lane 0).
-trait Log8Pass1: Copy {
+trait Log8Passes: Copy {
     /// The run's half sums.
     fn pass1(self, line: &mut [Line8; LOG8_RUN], row: &[Word8; LOG8_RUN], below: &[Word8; LOG8_RUN], pairs: &PairMeans);
+
+    /// F2's second pass over a run that is not flat and the pixel after it,
+    /// [`read_out_log8_pass2`].
+    #[inline(always)]
+    fn pass2(
+        self,
+        out: &mut [u8; 3 * LOG8_RUN],
+        run: &[Line8; LOG8_RUN + 1],
+        pairs: &PairMeans,
+        table: &[u8; LOG8_ADDRESSES],
+    ) {
+        read_out_log8_pass2(out, run, pairs, table);
+    }
 }
 
-/// [`Log8Pass1`] for the build's target, whatever the processor: the pair table.
+/// [`Log8Passes`] for the build's target, whatever the processor: the pair table.
 #[derive(Clone, Copy)]
 struct Log8Portable;
 
-impl Log8Pass1 for Log8Portable {
+impl Log8Passes for Log8Portable {
     #[inline(always)]
     fn pass1(
         self,
@@ -2085,7 +2098,7 @@ impl Log8Pass1 for Log8Portable {
     }
 }
 
-/// [`Log8Pass1`] in AVX-512 ([`read_out_log8_pass1_avx512`]); made only by
+/// [`Log8Passes`] in AVX-512 ([`read_out_log8_pass1_avx512`]); made only by
 /// [`Log8Avx512::detect`], on a processor that has the features.
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy)]
@@ -2104,7 +2117,7 @@ impl Log8Avx512 {
 }
 
 #[cfg(target_arch = "x86_64")]
-impl Log8Pass1 for Log8Avx512 {
+impl Log8Passes for Log8Avx512 {
     #[inline(always)]
     fn pass1(
         self,
@@ -2120,13 +2133,28 @@ impl Log8Pass1 for Log8Avx512 {
             read_out_log8_pass1_avx512(line, row, below, pairs)
         }
     }
+
+    #[inline(always)]
+    fn pass2(
+        self,
+        out: &mut [u8; 3 * LOG8_RUN],
+        run: &[Line8; LOG8_RUN + 1],
+        pairs: &PairMeans,
+        table: &[u8; LOG8_ADDRESSES],
+    ) {
+        // SAFETY: as in `pass1`.
+        #[allow(unsafe_code, reason = "a function compiled for AVX-512, on a processor found to have it")]
+        unsafe {
+            read_out_log8_pass2_avx512(out, run, pairs, table)
+        }
+    }
 }
 
 /// [`read_out_log8_from`]'s rows with the first pass of `pass1`.
 #[inline(always)]
 #[allow(clippy::too_many_arguments, reason = "the readout's registers, passed as they are")]
 fn read_out_log8_rows<'a>(
-    pass1: impl Log8Pass1,
+    passes: impl Log8Passes,
     w: usize,
     h: usize,
     segment: &impl Fn(usize, usize) -> &'a [Word8],
@@ -2171,7 +2199,7 @@ fn read_out_log8_rows<'a>(
             let (row, below) = (segment(y, x0), segment(below_y, x0));
             let n = row.len().min(below.len());
             let (line, flat_runs) = (&mut line[x0..x0 + n], &mut flat_runs[x0 / LOG8_RUN..]);
-            read_out_log8_pass1(pass1, line, &row[..n], &below[..n], flat_runs, &mut flat_mean, pairs);
+            read_out_log8_pass1(passes, line, &row[..n], &below[..n], flat_runs, &mut flat_mean, pairs);
             x0 += n;
         }
         // Pass 2: half sums of horizontally adjacent ones, a run at a time; the
@@ -2204,7 +2232,7 @@ fn read_out_log8_rows<'a>(
                 }
             } else if next.is_some() {
                 let run = line[x0..=x0 + LOG8_RUN].try_into().expect("a run and the pixel after it");
-                read_out_log8_pass2(out_run, run, pairs, table);
+                passes.pass2(out_run, run, pairs, table);
             } else {
                 read_out_log8_pass2_end(out_run, &line[x0..], pairs, table);
             }
@@ -2255,7 +2283,7 @@ fn pattern(rgb: [u8; 3]) -> [u64; 3] {
 /// half sum, which the next flat run most likely repeats.
 #[inline(always)]
 fn read_out_log8_pass1(
-    pass1: impl Log8Pass1,
+    passes: impl Log8Passes,
     line: &mut [Line8],
     row: &[Word8],
     below: &[Word8],
@@ -2284,7 +2312,7 @@ fn read_out_log8_pass1(
             }
             l[0] = flat_mean.1;
         } else {
-            pass1.pass1(l, a, b, pairs);
+            passes.pass1(l, a, b, pairs);
         }
     }
     if whole < row.len() {
@@ -2372,6 +2400,113 @@ fn read_out_log8_pass1_avx512(
         unsafe {
             _mm512_storeu_si512(dst.as_mut_ptr().cast(), v)
         }
+    }
+}
+
+/// Entries of the second pass's tables that its AVX-512 copy reads: `T[d]` is 0
+/// from `d = 988` on, and a mean's gamma address is at most `4 Q1 = 1020`.
+const LOG8_SHORT_TABLE: usize = 1024;
+
+/// 64 bytes of `table[..LOG8_SHORT_TABLE]` at indices `low[7:0] | high[1:0] << 8`
+/// (each byte lane of `low` and `high`): the eight 128-byte blocks by two-register
+/// byte permutes (`vpermi2b`, the index's low 7 bits), chosen by bits 7, 8 and 9.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+#[inline]
+fn lookup1024_avx512(table: &[u8; LOG8_SHORT_TABLE], low: __m512i, high: __m512i) -> __m512i {
+    const BLOCK: usize = 64;
+    let mut blocks = [_mm512_setzero_si512(); LOG8_SHORT_TABLE / BLOCK];
+    for (k, b) in blocks.iter_mut().enumerate() {
+        let part: &[u8; BLOCK] = table[BLOCK * k..][..BLOCK].try_into().expect("a block");
+        // SAFETY: `part` is 64 bytes, which the load reads.
+        #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
+        let loaded = unsafe { _mm512_loadu_si512(part.as_ptr().cast()) };
+        *b = loaded;
+    }
+    let bit7 = _mm512_movepi8_mask(low);
+    let mut quarters = [_mm512_setzero_si512(); 4];
+    for (k, q) in quarters.iter_mut().enumerate() {
+        let (a, b, c, d) = (blocks[4 * k], blocks[4 * k + 1], blocks[4 * k + 2], blocks[4 * k + 3]);
+        *q = _mm512_mask_blend_epi8(bit7, _mm512_permutex2var_epi8(a, low, b), _mm512_permutex2var_epi8(c, low, d));
+    }
+    let bit8 = _mm512_test_epi8_mask(high, _mm512_set1_epi8(1));
+    let bit9 = _mm512_test_epi8_mask(high, _mm512_set1_epi8(2));
+    let halves = [
+        _mm512_mask_blend_epi8(bit8, quarters[0], quarters[1]),
+        _mm512_mask_blend_epi8(bit8, quarters[2], quarters[3]),
+    ];
+    _mm512_mask_blend_epi8(bit9, halves[0], halves[1])
+}
+
+/// The first [`LOG8_SHORT_TABLE`] entries of a table of the second pass.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn short_table(table: &[u8; LOG8_ADDRESSES]) -> &[u8; LOG8_SHORT_TABLE] {
+    table[..LOG8_SHORT_TABLE].try_into().expect("1024 entries")
+}
+
+/// The 64 `i16` lanes of two registers as their low bytes and their bits `[9:8]` in
+/// two registers of 64 bytes (lane order kept).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+#[inline]
+fn index_bytes_avx512(v: [__m512i; 2]) -> (__m512i, __m512i) {
+    let join = |a: __m256i, b: __m256i| _mm512_inserti64x4::<1>(_mm512_castsi256_si512(a), b);
+    (
+        join(_mm512_cvtepi16_epi8(v[0]), _mm512_cvtepi16_epi8(v[1])),
+        join(_mm512_cvtepi16_epi8(_mm512_srli_epi16::<8>(v[0])), _mm512_cvtepi16_epi8(_mm512_srli_epi16::<8>(v[1]))),
+    )
+}
+
+/// [`read_out_log8_pass2`] in AVX-512 (BW, VBMI): the run's 16 pixels and the
+/// one after as 64 `i16` lanes (two registers, the spare lanes' results unused);
+/// `hi - lo` clamped to 1023 (`T` is 0 there as at every larger difference) and
+/// `T` at it by [`lookup1024_avx512`]; the address `hi - T[0] + T` raised to 0
+/// (the gamma table's entries below 0 and 0..4 are all code 1's output) and the
+/// output by the same look-up in the gamma table's first 1024 entries, 0 where
+/// both operands are zero (`hi` negative: [`LOG8_ZERO`]); then the 48 bytes packed
+/// by one byte permute and stored under a mask.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+fn read_out_log8_pass2_avx512(
+    out: &mut [u8; 3 * LOG8_RUN],
+    run: &[Line8; LOG8_RUN + 1],
+    pairs: &PairMeans,
+    table: &[u8; LOG8_ADDRESSES],
+) {
+    const LANES: usize = 32;
+    let lanes = run.as_flattened();
+    let load = |at: usize| {
+        let part: &[i16; LANES] = lanes[at..][..LANES].try_into().expect("32 lanes");
+        // SAFETY: `part` is 64 bytes, which the load reads.
+        #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
+        unsafe {
+            _mm512_loadu_si512(part.as_ptr().cast())
+        }
+    };
+    // A pixel's right neighbour is 4 lanes on.
+    let (a, b) = ([load(0), load(LANES)], [load(4), load(LANES + 4)]);
+    let hi = [_mm512_max_epi16(a[0], b[0]), _mm512_max_epi16(a[1], b[1])];
+    let top = _mm512_set1_epi16((LOG8_SHORT_TABLE - 1) as i16);
+    let d = [0, 1].map(|k| _mm512_min_epu16(_mm512_sub_epi16(hi[k], _mm512_min_epi16(a[k], b[k])), top));
+    let (low, high) = index_bytes_avx512(d);
+    let t = lookup1024_avx512(short_table(&pairs.softplus), low, high);
+    let t = [_mm512_cvtepu8_epi16(_mm512_castsi512_si256(t)), _mm512_cvtepu8_epi16(_mm512_extracti64x4_epi64::<1>(t))];
+    let ln2 = _mm512_set1_epi16(pairs.ln2);
+    let address =
+        [0, 1].map(|k| _mm512_max_epi16(_mm512_add_epi16(_mm512_sub_epi16(hi[k], ln2), t[k]), _mm512_setzero_si512()));
+    let (low, high) = index_bytes_avx512(address);
+    let g = lookup1024_avx512(short_table(table), low, high);
+    let zero = _mm512_kunpackd(u64::from(_mm512_movepi16_mask(hi[1])), u64::from(_mm512_movepi16_mask(hi[0])));
+    let g = _mm512_maskz_mov_epi8(!zero, g);
+    // Byte `3 i + ch` of the output is lane `4 i + ch`.
+    let pack: [u8; 64] = std::array::from_fn(|j| if j < 3 * LOG8_RUN { (4 * (j / 3) + j % 3) as u8 } else { 0 });
+    // SAFETY: `pack` is 64 bytes, which the load reads; the masked store writes the
+    // mask's 48 bytes, `out`'s.
+    #[allow(unsafe_code, reason = "a load of an array of a register's size, a masked store into `out`")]
+    unsafe {
+        let g = _mm512_permutexvar_epi8(_mm512_loadu_si512(pack.as_ptr().cast()), g);
+        _mm512_mask_storeu_epi8(out.as_mut_ptr().cast(), (1u64 << (3 * LOG8_RUN)) - 1, g);
     }
 }
 
