@@ -718,10 +718,11 @@ impl PairMeans {
     }
 
     /// The half sum of two stored codes by arithmetic: [`LogArith::mean`] of the
-    /// loaded codes, `hi + T[hi - lo] - T[0]` raised to code 1, with `hi - lo = 4 (qh
-    /// - ql)` for two codes (`T` from [`Self::code_softplus`]) and past the table's
-    /// end (`T = 0`) with zero's code; two zeros give [`LOG8_ZERO`]. The same as the
-    /// table's entry (tested on every pair); the definition of the SIMD first pass.
+    /// loaded codes, `hi + T[hi - lo] - T[0]` raised to code 1, with
+    /// `hi - lo = 4 (qh - ql)` for two codes (`T` from [`Self::code_softplus`]) and
+    /// past the table's end (`T = 0`) with zero's code; two zeros give
+    /// [`LOG8_ZERO`]. The same as the table's entry (tested on every pair); the
+    /// definition of the SIMD first pass.
     #[cfg(test)]
     fn mean_codes(&self, a: u8, b: u8) -> i16 {
         let (hi, lo) = (a.max(b), a.min(b));
@@ -1024,7 +1025,7 @@ impl VideoBuffer {
                 let f1 = LogF1::new(scale);
                 accumulate_log::<_, true>(codes, width, vis, f1, |i| colors.pixel(i).to_array().map(|c| f1.encode(c)));
             }
-            Memory::Log8 { scale, codes } => accumulate_log8(codes, width, vis, colors, scale),
+            Memory::Log8 { codes, .. } => accumulate_log8(codes, width, vis, colors),
             Memory::Linear { scale, codes } => for_visible(vis, width, |p, n, first, i| {
                 let c = colors.pixel(i).to_array();
                 let word = &mut codes[p];
@@ -1428,18 +1429,38 @@ fn accumulate_log_flat<W: LogWord>(codes: &mut [W], width: usize, vis: &Visible,
 /// Zen 4's gathers cost about as much as the scalar loads they replace (valgrind
 /// counts a gather as one instruction: it showed city's colour + VB 148 -> 119 M).
 #[inline]
-fn accumulate_log8(codes: &mut [Word8], width: usize, vis: &Visible, colors: &CellColors, scale: &LogScale) {
-    let (f1, encoder) = (LogF1::new(scale), scale.encoder8.as_ref().expect("the 8-bit encoder").tables());
+fn accumulate_log8(codes: &mut [Word8], width: usize, vis: &Visible, colors: &CellColors) {
+    let F1Log8 { f1, encoder } = F1Log8::get();
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx2") {
         // SAFETY: `accumulate_log8_avx2` only needs AVX2, which the processor was
         // just found to have.
         #[allow(unsafe_code, reason = "the one call of a function compiled for AVX2, after detection")]
         unsafe {
-            return accumulate_log8_avx2(codes, width, vis, colors, f1, encoder);
+            return accumulate_log8_avx2(codes, width, vis, colors, f1, *encoder);
         }
     }
-    accumulate_log8_portable(codes, width, vis, colors, f1, encoder)
+    accumulate_log8_portable(codes, width, vis, colors, *f1, *encoder)
+}
+
+/// The 8-bit code's F1 registers ([`LogF1`], [`Encoder8Tables`]) made once: a cell's
+/// F1 then starts from one pointer, not from the scale's fields copied per call
+/// (default: ~20 instructions a cell of ~520).
+struct F1Log8 {
+    f1: LogF1<'static>,
+    encoder: Encoder8Tables<'static>,
+}
+
+impl F1Log8 {
+    /// The 8-bit scale's registers.
+    #[inline]
+    fn get() -> &'static Self {
+        static F1: OnceLock<F1Log8> = OnceLock::new();
+        F1.get_or_init(|| {
+            let scale = LogScale::get(PAIR_MEANS_BITS);
+            Self { f1: LogF1::new(scale), encoder: scale.encoder8.as_ref().expect("the 8-bit encoder").tables() }
+        })
+    }
 }
 
 /// [`accumulate_log8`] for the build's target, whatever the processor.
@@ -1478,7 +1499,7 @@ fn accumulate_log8_avx2(
     width: usize,
     vis: &Visible,
     colors: &CellColors,
-    f1: LogF1,
+    f1: &LogF1,
     encoder: Encoder8Tables,
 ) {
     const SIDE: usize = CELL_SIDE as usize;
@@ -2828,7 +2849,7 @@ mod tests {
     fn read_out_log8_copies_match_portable() {
         let s = LogScale::get(PAIR_MEANS_BITS);
         let pairs = s.pair_means.as_ref().expect("the 8-bit scale has the pair table");
-        let mut rng = Rng(0x0F2_A5);
+        let mut rng = Rng(0xF2A5);
         for (w, h, change) in [(1, 3, 4), (15, 4, 3), (16, 5, 40), (17, 6, 2), (33, 9, 8), (100, 13, 300), (129, 7, 30)]
         {
             let mut word = 0u32;
@@ -2925,7 +2946,7 @@ mod tests {
             #[allow(unsafe_code, reason = "a test of the AVX2 copy, after detection")]
             fn avx2(c: &mut [Word8], w: usize, v: &Visible, k: &CellColors, f: LogF1, e: Encoder8Tables) {
                 // SAFETY: called only when the processor has AVX2 (below).
-                unsafe { accumulate_log8_avx2(c, w, v, k, f, e) }
+                unsafe { accumulate_log8_avx2(c, w, v, k, &f, e) }
             }
             if std::is_x86_feature_detected!("avx2") {
                 copies.push(("AVX2", avx2));
