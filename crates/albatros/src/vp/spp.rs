@@ -267,7 +267,7 @@ impl SubpixelProcessors {
                 return self.table_code_sse2::<STATS>(frag, edges, counters);
             }
         }
-        self.table_code::<STATS>(frag, edges, counters, line_indices_portable)
+        self.table_code::<STATS>(frag, edges, counters, line_indices_portable, near_end_cell)
     }
 
     /// [`Self::table_code`] with the row-table indices in SSE2 ([`line_indices_sse2`]).
@@ -279,7 +279,13 @@ impl SubpixelProcessors {
         edges: &[EdgeCode],
         counters: &mut Counters,
     ) -> [u16; 16] {
-        self.table_code::<STATS>(frag, edges, counters, |v1, slope| line_indices_sse2(v1, slope))
+        self.table_code::<STATS>(
+            frag,
+            edges,
+            counters,
+            |v1, slope| line_indices_sse2(v1, slope),
+            |line, px, py| near_end_cell_sse2(line, px, py),
+        )
     }
 
     /// The table modes' fragment code, with `line_indices` giving an edge's four
@@ -291,6 +297,7 @@ impl SubpixelProcessors {
         edges: &[EdgeCode],
         counters: &mut Counters,
         line_indices: impl Fn(i64, i64) -> [usize; 4],
+        near_end: impl Fn(&ExactLine, u32, u32) -> bool,
     ) -> [u16; 16] {
         // The code as pixel rows (word `y`, bits `16 x ..` the pixel `(x, y)`) from the
         // vertical edges, and as pixel columns (word `x`, bits `16 y ..`) from the
@@ -315,7 +322,7 @@ impl SubpixelProcessors {
             }
             // The pixels of this cell near an endpoint of the edge, where the exact
             // rule replaces the table (about one edge in seven on default: out of line).
-            if self.vertex_exact && near_end_cell(&e.exact, frag.px, frag.py) {
+            if self.vertex_exact && near_end(&e.exact, frag.px, frag.py) {
                 words = vertex_words(e, frag.px, frag.py, vertical, words);
             }
             let code = if vertical { &mut rows } else { &mut columns };
@@ -765,6 +772,31 @@ fn near_end_cell(line: &ExactLine, px: u32, py: u32) -> bool {
     within(line.ends[0]) | within(line.ends[1])
 }
 
+/// [`near_end_cell`] in SSE2, the four coordinates at once: each `e - x0`, biased by
+/// `2^31` so that a signed compare asks the unsigned `<= SPAN`. In 32 bits the
+/// differences wrap, but with the cell below [`CELL_LIMIT_32`] (`x0 < 2^30`) a true
+/// difference lies in `(-2^31 - 2^30, 2^31)`, so it wraps into `0..=SPAN` only when
+/// it is there: about 10 instructions an edge against some 20 (tested).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "sse2")]
+#[inline]
+fn near_end_cell_sse2(line: &ExactLine, px: u32, py: u32) -> bool {
+    use std::arch::x86_64::{
+        _mm_castsi128_ps, _mm_cmpgt_epi32, _mm_movemask_ps, _mm_set1_epi32, _mm_set_epi32, _mm_sub_epi32,
+    };
+    if (px | py) >= CELL_LIMIT_32 {
+        return near_end_cell(line, px, py);
+    }
+    const SPAN: i32 = CELL_SIDE as i32 * SNAP_ONE + 2 * VERTEX_MARGIN;
+    let (x0, y0) = (px as i32 * SNAP_ONE - VERTEX_MARGIN, py as i32 * SNAP_ONE - VERTEX_MARGIN);
+    let base = _mm_set_epi32(y0 ^ i32::MIN, x0 ^ i32::MIN, y0 ^ i32::MIN, x0 ^ i32::MIN);
+    let [(ax, ay), (bx, by)] = line.ends;
+    let biased = _mm_sub_epi32(_mm_set_epi32(by, bx, ay, ax), base);
+    let within = _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpgt_epi32(_mm_set1_epi32((SPAN + 1) ^ i32::MIN), biased)));
+    // Both coordinates of one endpoint: bits 0 and 1, or 2 and 3.
+    within & (within >> 1) & 0b101 != 0
+}
+
 /// An edge's words (see [`exact_into`]) with the exact sets at its vertex pixels in
 /// the cell at pixel `(px, py)`. Out of line: most edges have no endpoint near the
 /// cell, and inlined its set-up was hoisted into every fragment's.
@@ -1067,6 +1099,13 @@ mod tests {
                 assert_eq!(pixels >> pixel & 1 == 1, near, "ends {ends:?}, cell ({px}, {py}), pixel {pixel}");
             }
             assert_eq!(pixels != 0, near_end_cell(&line, px, py), "ends {ends:?}, cell ({px}, {py})");
+            #[cfg(target_arch = "x86_64")]
+            {
+                // SAFETY: x86-64 always has SSE2.
+                #[allow(unsafe_code, reason = "a function compiled for SSE2, on x86-64")]
+                let got = unsafe { near_end_cell_sse2(&line, px, py) };
+                assert_eq!(got, pixels != 0, "SSE2: ends {ends:?}, cell ({px}, {py})");
+            }
         }
     }
 
@@ -1091,6 +1130,41 @@ mod tests {
             let ends = [(coordinate(px), coordinate(py)), (coordinate(px), coordinate(py))];
             let line = ExactLine { a: 1, b: 0, c: 0, ends };
             assert_eq!(vertex_pixels_fast(&line, px, py), vertex_pixels(&line, px, py), "{ends:?} ({px}, {py})");
+        }
+    }
+
+    /// [`near_end_cell_sse2`] is [`near_end_cell`]: cells up to and beyond
+    /// [`CELL_LIMIT_32`], endpoints in, around and far from them, at the ends of the
+    /// `i32` range (where the 32-bit differences wrap).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn near_end_cell_sse2_is_near_end_cell() {
+        let mut next = xorshift(0x0DD5_EE2E_11D5_0A11);
+        let one = i64::from(SNAP_ONE);
+        for k in 0..400_000 {
+            let cell = |next: &mut dyn FnMut(i64) -> i64| match k % 3 {
+                0 => 4 * next(2048) as u32,
+                1 => (i64::from(CELL_LIMIT_32) - 4 * next(64)) as u32,
+                _ => 4 * next(1 << 28) as u32,
+            };
+            let (px, py) = (cell(&mut next), cell(&mut next));
+            let mut coordinate = |p: u32| -> i32 {
+                let near = i64::from(p) * one + next(8 * one) - 2 * one;
+                let v = match k % 7 {
+                    0 => near - near.rem_euclid(one / 2) + next(3) - 1,
+                    1 => next(1 << 32) ^ (next(2) << 31),
+                    2 => [i64::from(i32::MIN), i64::from(i32::MAX)][next(2) as usize] + next(2000) - 1000,
+                    3 => near + (next(3) - 1) * (1 << 32),
+                    _ => near,
+                };
+                v.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32
+            };
+            let ends = [(coordinate(px), coordinate(py)), (coordinate(px), coordinate(py))];
+            let line = ExactLine { a: 1, b: 0, c: 0, ends };
+            // SAFETY: x86-64 always has SSE2.
+            #[allow(unsafe_code, reason = "a function compiled for SSE2, on x86-64")]
+            let got = unsafe { near_end_cell_sse2(&line, px, py) };
+            assert_eq!(got, near_end_cell(&line, px, py), "{ends:?} ({px}, {py})");
         }
     }
 
@@ -1381,7 +1455,7 @@ mod tests {
             let frag = Fragment { px, py, active: &active, cells: super::super::gq::ONE_CELL };
             let mut counters = Counters::new(3);
             let want = spp.fragment_code::<false>(&frag, &edges, &mut counters);
-            let got = spp.table_code::<false>(&frag, &edges, &mut counters, line_indices_portable);
+            let got = spp.table_code::<false>(&frag, &edges, &mut counters, line_indices_portable, near_end_cell);
             assert_eq!(got, want, "case {k}");
         }
     }
