@@ -267,7 +267,7 @@ impl SubpixelProcessors {
                 return self.table_code_sse2::<STATS>(frag, edges, counters);
             }
         }
-        self.table_code::<STATS>(frag, edges, counters, line_indices_portable)
+        self.table_code::<STATS>(frag, edges, counters, line_indices_portable, near_end_cell)
     }
 
     /// [`Self::table_code`] with the row-table indices in SSE2 ([`line_indices_sse2`]).
@@ -279,7 +279,13 @@ impl SubpixelProcessors {
         edges: &[EdgeCode],
         counters: &mut Counters,
     ) -> [u16; 16] {
-        self.table_code::<STATS>(frag, edges, counters, |v1, slope| line_indices_sse2(v1, slope))
+        self.table_code::<STATS>(
+            frag,
+            edges,
+            counters,
+            |v1, slope| line_indices_sse2(v1, slope),
+            |line, px, py| near_end_cell_sse2(line, px, py),
+        )
     }
 
     /// The table modes' fragment code, with `line_indices` giving an edge's four
@@ -291,6 +297,7 @@ impl SubpixelProcessors {
         edges: &[EdgeCode],
         counters: &mut Counters,
         line_indices: impl Fn(i64, i64) -> [usize; 4],
+        near_end: impl Fn(&ExactLine, u32, u32) -> bool,
     ) -> [u16; 16] {
         // The code as pixel rows (word `y`, bits `16 x ..` the pixel `(x, y)`) from the
         // vertical edges, and as pixel columns (word `x`, bits `16 y ..`) from the
@@ -315,7 +322,7 @@ impl SubpixelProcessors {
             }
             // The pixels of this cell near an endpoint of the edge, where the exact
             // rule replaces the table (about one edge in seven on default: out of line).
-            if self.vertex_exact && near_end_cell(&e.exact, frag.px, frag.py) {
+            if self.vertex_exact && near_end(&e.exact, frag.px, frag.py) {
                 words = vertex_words(e, frag.px, frag.py, vertical, words);
             }
             let code = if vertical { &mut rows } else { &mut columns };
@@ -549,6 +556,27 @@ impl VertexWindow {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "sse4.1")]
 fn vertex_pixels_sse41(line: &ExactLine, px: u32, py: u32) -> u16 {
+    vertex_spread(vertex_windows_sse41(line, px, py), false)
+}
+
+/// The vertex pixels from the endpoints' windows ([`vertex_windows_sse41`]): bit
+/// `4 y + x` (`transposed`: bit `4 x + y`) for the pixel `(x, y)` of the cell.
+#[inline(always)]
+fn vertex_spread([first, second]: [u64; 2], transposed: bool) -> u16 {
+    // Row bit `y` to nibble `y` (bit `4 y`), times the four column bits (transposed:
+    // the other way round).
+    let spread = |rows: u64| (rows * 0x249) & 0x1111;
+    let (x0, y0, x1, y1) = (first & 0xF, first >> 32, second & 0xF, second >> 32);
+    let pixels = if transposed { (spread(x0) * y0) | (spread(x1) * y1) } else { (spread(y0) * x0) | (spread(y1) * x1) };
+    pixels as u16
+}
+
+/// The windows of [`vertex_pixels_sse41`]: per endpoint a word with the cell's
+/// columns holding its x in bits 0..4 and the rows holding its y in bits 32..36.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "sse4.1")]
+#[inline]
+fn vertex_windows_sse41(line: &ExactLine, px: u32, py: u32) -> [u64; 2] {
     use std::arch::x86_64::{
         _mm_add_epi32, _mm_and_si128, _mm_cmpeq_epi32, _mm_cvtsi128_si64, _mm_extract_epi64, _mm_max_epi32,
         _mm_min_epi32, _mm_or_si128, _mm_set1_epi32, _mm_set_epi32, _mm_set_epi8, _mm_setzero_si128, _mm_shuffle_epi8,
@@ -583,11 +611,7 @@ fn vertex_pixels_sse41(line: &ExactLine, px: u32, py: u32) -> u16 {
     );
     // Bytes 0, 4, 8, 12: the bits of x0, y0, x1, y1; the others index entry 0 (zero).
     let bits = _mm_shuffle_epi8(table, index);
-    let (first, second) = (_mm_cvtsi128_si64(bits) as u64, _mm_extract_epi64::<1>(bits) as u64);
-    // Row bit `y` to nibble `y` (bit `4 y`), times the four column bits.
-    let spread = |rows: u64| (rows * 0x249) & 0x1111;
-    let pixels = (spread(first >> 32) * (first & 0xF)) | (spread(second >> 32) * (second & 0xF));
-    pixels as u16
+    [_mm_cvtsi128_si64(bits) as u64, _mm_extract_epi64::<1>(bits) as u64]
 }
 
 /// One edge's subpixel sets for the 16 pixels of a cell (`4 y + x`), from the table
@@ -748,18 +772,53 @@ fn near_end_cell(line: &ExactLine, px: u32, py: u32) -> bool {
     within(line.ends[0]) | within(line.ends[1])
 }
 
+/// [`near_end_cell`] in SSE2, the four coordinates at once: each `e - x0`, biased by
+/// `2^31` so that a signed compare asks the unsigned `<= SPAN`. In 32 bits the
+/// differences wrap, but with the cell below [`CELL_LIMIT_32`] (`x0 < 2^30`) a true
+/// difference lies in `(-2^31 - 2^30, 2^31)`, so it wraps into `0..=SPAN` only when
+/// it is there: about 10 instructions an edge against some 20 (tested).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "sse2")]
+#[inline]
+fn near_end_cell_sse2(line: &ExactLine, px: u32, py: u32) -> bool {
+    use std::arch::x86_64::{
+        _mm_castsi128_ps, _mm_cmpgt_epi32, _mm_movemask_ps, _mm_set1_epi32, _mm_set_epi32, _mm_sub_epi32,
+    };
+    if (px | py) >= CELL_LIMIT_32 {
+        return near_end_cell(line, px, py);
+    }
+    const SPAN: i32 = CELL_SIDE as i32 * SNAP_ONE + 2 * VERTEX_MARGIN;
+    let (x0, y0) = (px as i32 * SNAP_ONE - VERTEX_MARGIN, py as i32 * SNAP_ONE - VERTEX_MARGIN);
+    let base = _mm_set_epi32(y0 ^ i32::MIN, x0 ^ i32::MIN, y0 ^ i32::MIN, x0 ^ i32::MIN);
+    let [(ax, ay), (bx, by)] = line.ends;
+    let biased = _mm_sub_epi32(_mm_set_epi32(by, bx, ay, ax), base);
+    let within = _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpgt_epi32(_mm_set1_epi32((SPAN + 1) ^ i32::MIN), biased)));
+    // Both coordinates of one endpoint: bits 0 and 1, or 2 and 3.
+    within & (within >> 1) & 0b101 != 0
+}
+
 /// An edge's words (see [`exact_into`]) with the exact sets at its vertex pixels in
 /// the cell at pixel `(px, py)`. Out of line: most edges have no endpoint near the
 /// cell, and inlined its set-up was hoisted into every fragment's.
 #[inline(never)]
 fn vertex_words(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64; 4]) -> [u64; 4] {
     #[cfg(target_arch = "x86_64")]
-    if e.exact32 && (px | py) < CELL_LIMIT_32 && std::is_x86_feature_detected!("sse4.1") {
-        // SAFETY: `vertex_words_sse41` only needs SSE4.1 (and the SSE2 it implies),
-        // which the processor was just found to have.
-        #[allow(unsafe_code, reason = "a function compiled for SSE4.1, after detection")]
-        unsafe {
-            return vertex_words_sse41(e, px, py, vertical, words);
+    if e.exact32 && (px | py) < CELL_LIMIT_32 {
+        if has_avx512() {
+            // SAFETY: `vertex_words_avx512` only needs the features `has_avx512`
+            // just found the processor to have.
+            #[allow(unsafe_code, reason = "a function compiled for AVX-512, after detection")]
+            unsafe {
+                return vertex_words_avx512(e, px, py, vertical, words);
+            }
+        }
+        if std::is_x86_feature_detected!("sse4.1") {
+            // SAFETY: `vertex_words_sse41` only needs SSE4.1 (and the SSE2 it
+            // implies), which the processor was just found to have.
+            #[allow(unsafe_code, reason = "a function compiled for SSE4.1, after detection")]
+            unsafe {
+                return vertex_words_sse41(e, px, py, vertical, words);
+            }
         }
     }
     let mut words = words;
@@ -792,6 +851,93 @@ fn vertex_words_sse41(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u6
         exact_into_sse2(&e.exact, e.lr, threshold, px, py, vertex, vertical, &mut words);
     }
     words
+}
+
+/// Whether the processor has what [`vertex_words_avx512`] is compiled for.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn has_avx512() -> bool {
+    std::is_x86_feature_detected!("avx512f")
+        && std::is_x86_feature_detected!("avx512bw")
+        && std::is_x86_feature_detected!("avx512vl")
+        && std::is_x86_feature_detected!("avx512dq")
+        && std::is_x86_feature_detected!("bmi1")
+}
+
+/// [`vertex_words_sse41`] in AVX-512: the same sets (tested), in about half its
+/// instructions. The vertex pixels come in the words' order (bit `4 word + lane`),
+/// so no put per pixel: -E at the first centre of all 16 pixels at once (64-bit
+/// lanes, narrowed to 32 bits with signed saturation, which is the SSE2 path's
+/// clamp), then per vertex pixel one 16-lane compare of its value against the 16
+/// centres' offsets ([`ExactLine32`]) gives its set; the sets go into the words
+/// by one masked blend.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512dq,bmi1")]
+fn vertex_words_avx512(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64; 4]) -> [u64; 4] {
+    use std::arch::x86_64::{
+        _mm256_extract_epi64, _mm256_mask_blend_epi16, _mm256_mask_broadcastw_epi16, _mm256_set1_epi16,
+        _mm256_set_epi64x, _mm256_setzero_si256, _mm256_xor_si256, _mm512_add_epi32, _mm512_add_epi64,
+        _mm512_castsi256_si512, _mm512_cmpgt_epi32_mask, _mm512_cvtsepi64_epi32, _mm512_inserti64x4,
+        _mm512_maskz_set1_epi64, _mm512_mullo_epi32, _mm512_mullo_epi64, _mm512_permutexvar_epi32, _mm512_set1_epi32,
+        _mm512_set1_epi64, _mm512_set_epi32, _mm512_set_epi64, _mm_cvtsi32_si128,
+    };
+    const ONE: i64 = SNAP_ONE as i64;
+    const HALF_SUB: i64 = (SNAP_ONE / 8) as i64;
+    const SUB: i64 = (SNAP_ONE / 4) as i64;
+    let line = &e.exact;
+    // Lane `4 w + l` of the words (word `w`, bits `16 l ..`) is the pixel `(l, w)` of
+    // a vertical edge's cell and `(w, l)` of a horizontal one's.
+    let near = vertex_spread(vertex_windows_sse41(line, px, py), !vertical);
+    if near == 0 {
+        return words;
+    }
+    // As `vertex_words_sse41`: the greater side is `E >= threshold`.
+    debug_assert_eq!(line.a >= 0, on_line_greater(line));
+    let threshold = i64::from(line.a < 0);
+    let e_cell =
+        line.a * (i64::from(px) * ONE + HALF_SUB) + line.b * (i64::from(py) * ONE + HALF_SUB) + line.c - threshold;
+    let (pixel_x, pixel_y) = (line.a * ONE, line.b * ONE);
+    let (per_lane, per_word) = if vertical { (pixel_x, pixel_y) } else { (pixel_y, pixel_x) };
+    // -E at each pixel's first centre (every term below 2^48: no overflow), lanes of
+    // words 0 and 1, then 2 and 3, saturated to 32 bits.
+    let lanes = _mm512_mullo_epi64(_mm512_set1_epi64(-per_lane), _mm512_set_epi64(3, 2, 1, 0, 3, 2, 1, 0));
+    const SECOND_WORD: u8 = 0xF0;
+    let t01 = _mm512_add_epi64(
+        _mm512_add_epi64(_mm512_set1_epi64(-e_cell), lanes),
+        _mm512_maskz_set1_epi64(SECOND_WORD, -per_word),
+    );
+    let t23 = _mm512_add_epi64(t01, _mm512_set1_epi64(-2 * per_word));
+    let t = _mm512_inserti64x4::<1>(_mm512_castsi256_si512(_mm512_cvtsepi64_epi32(t01)), _mm512_cvtsepi64_epi32(t23));
+    // The offsets of a pixel's 16 centres from its first, subpixel `4 sy + sx` in lane
+    // `4 sy + sx` (fit: `ExactLine32`; the same numbers as the SSE2 path's rows).
+    let (step_x, step_y) = ((line.a * SUB) as i32, (line.b * SUB) as i32);
+    let offsets = _mm512_add_epi32(
+        _mm512_mullo_epi32(_mm512_set1_epi32(step_x), _mm512_set_epi32(3, 2, 1, 0, 3, 2, 1, 0, 3, 2, 1, 0, 3, 2, 1, 0)),
+        _mm512_mullo_epi32(_mm512_set1_epi32(step_y), _mm512_set_epi32(3, 3, 3, 3, 2, 2, 2, 2, 1, 1, 1, 1, 0, 0, 0, 0)),
+    );
+    // Per vertex pixel: its centres off the greater side, `offset < -E0`.
+    let mut less = _mm256_setzero_si256();
+    let mut left = near;
+    while left != 0 {
+        let lane = left.trailing_zeros();
+        let bit = left & left.wrapping_neg();
+        left &= left - 1;
+        let t_lane = _mm512_permutexvar_epi32(_mm512_set1_epi32(lane as i32), t);
+        // Through a general register: as a `set1` of the mask LLVM builds the
+        // broadcast from the mask's bits one word at a time.
+        let set = _mm_cvtsi32_si128(i32::from(_mm512_cmpgt_epi32_mask(t_lane, offsets)));
+        less = _mm256_mask_broadcastw_epi16(less, bit, set);
+    }
+    // `greater = !less`; LR = 0 keeps the other side.
+    let sets = _mm256_xor_si256(less, _mm256_set1_epi16(if e.lr { -1 } else { 0 }));
+    let w = _mm256_set_epi64x(words[3] as i64, words[2] as i64, words[1] as i64, words[0] as i64);
+    let w = _mm256_mask_blend_epi16(near, w, sets);
+    [
+        _mm256_extract_epi64::<0>(w) as u64,
+        _mm256_extract_epi64::<1>(w) as u64,
+        _mm256_extract_epi64::<2>(w) as u64,
+        _mm256_extract_epi64::<3>(w) as u64,
+    ]
 }
 
 /// Whether a point on the exact line lies on its greater side (the perturbation of
@@ -953,6 +1099,13 @@ mod tests {
                 assert_eq!(pixels >> pixel & 1 == 1, near, "ends {ends:?}, cell ({px}, {py}), pixel {pixel}");
             }
             assert_eq!(pixels != 0, near_end_cell(&line, px, py), "ends {ends:?}, cell ({px}, {py})");
+            #[cfg(target_arch = "x86_64")]
+            {
+                // SAFETY: x86-64 always has SSE2.
+                #[allow(unsafe_code, reason = "a function compiled for SSE2, on x86-64")]
+                let got = unsafe { near_end_cell_sse2(&line, px, py) };
+                assert_eq!(got, pixels != 0, "SSE2: ends {ends:?}, cell ({px}, {py})");
+            }
         }
     }
 
@@ -977,6 +1130,41 @@ mod tests {
             let ends = [(coordinate(px), coordinate(py)), (coordinate(px), coordinate(py))];
             let line = ExactLine { a: 1, b: 0, c: 0, ends };
             assert_eq!(vertex_pixels_fast(&line, px, py), vertex_pixels(&line, px, py), "{ends:?} ({px}, {py})");
+        }
+    }
+
+    /// [`near_end_cell_sse2`] is [`near_end_cell`]: cells up to and beyond
+    /// [`CELL_LIMIT_32`], endpoints in, around and far from them, at the ends of the
+    /// `i32` range (where the 32-bit differences wrap).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn near_end_cell_sse2_is_near_end_cell() {
+        let mut next = xorshift(0x0DD5_EE2E_11D5_0A11);
+        let one = i64::from(SNAP_ONE);
+        for k in 0..400_000 {
+            let cell = |next: &mut dyn FnMut(i64) -> i64| match k % 3 {
+                0 => 4 * next(2048) as u32,
+                1 => (i64::from(CELL_LIMIT_32) - 4 * next(64)) as u32,
+                _ => 4 * next(1 << 28) as u32,
+            };
+            let (px, py) = (cell(&mut next), cell(&mut next));
+            let mut coordinate = |p: u32| -> i32 {
+                let near = i64::from(p) * one + next(8 * one) - 2 * one;
+                let v = match k % 7 {
+                    0 => near - near.rem_euclid(one / 2) + next(3) - 1,
+                    1 => next(1 << 32) ^ (next(2) << 31),
+                    2 => [i64::from(i32::MIN), i64::from(i32::MAX)][next(2) as usize] + next(2000) - 1000,
+                    3 => near + (next(3) - 1) * (1 << 32),
+                    _ => near,
+                };
+                v.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32
+            };
+            let ends = [(coordinate(px), coordinate(py)), (coordinate(px), coordinate(py))];
+            let line = ExactLine { a: 1, b: 0, c: 0, ends };
+            // SAFETY: x86-64 always has SSE2.
+            #[allow(unsafe_code, reason = "a function compiled for SSE2, on x86-64")]
+            let got = unsafe { near_end_cell_sse2(&line, px, py) };
+            assert_eq!(got, near_end_cell(&line, px, py), "{ends:?} ({px}, {py})");
         }
     }
 
@@ -1149,7 +1337,7 @@ mod tests {
         use super::super::edge::ScreenFx;
         let mut next = xorshift(0x0BAD_CAFE_F00D_1234);
         let one = i64::from(SNAP_ONE);
-        let mut long = 0;
+        let (mut long, mut sse41, mut avx512) = (0, 0, 0);
         for k in 0..100_000 {
             let (px, py) = (4 * next(2048) as u32, 4 * next(2048) as u32);
             let mut point = |near: bool| {
@@ -1177,11 +1365,30 @@ mod tests {
                     }
                 }
                 assert_eq!(vertex_words(&e, px, py, vertical, words), want, "{e:?} ({px}, {py})");
+                #[cfg(target_arch = "x86_64")]
+                if e.exact32 {
+                    // Each SIMD path the processor has, whichever `vertex_words` takes.
+                    if std::is_x86_feature_detected!("sse4.1") {
+                        // SAFETY: the processor has SSE4.1.
+                        #[allow(unsafe_code, reason = "a function compiled for SSE4.1, after detection")]
+                        let got = unsafe { vertex_words_sse41(&e, px, py, vertical, words) };
+                        assert_eq!(got, want, "SSE4.1: {e:?} ({px}, {py})");
+                        sse41 += 1;
+                    }
+                    if has_avx512() {
+                        // SAFETY: the processor has what `has_avx512` asks.
+                        #[allow(unsafe_code, reason = "a function compiled for AVX-512, after detection")]
+                        let got = unsafe { vertex_words_avx512(&e, px, py, vertical, words) };
+                        assert_eq!(got, want, "AVX-512: {e:?} ({px}, {py})");
+                        avx512 += 1;
+                    }
+                }
                 let checked = EdgeCode { exact32: false, ..e };
                 assert_eq!(vertex_words(&checked, px, py, vertical, words), want, "{e:?} ({px}, {py})");
             }
         }
         assert!(long > 1000, "{long}");
+        eprintln!("vertex_words: {sse41} cases in SSE4.1, {avx512} in AVX-512");
     }
 
     /// The SSE2 row-table indices are the portable ones: V and slopes of every size
@@ -1248,7 +1455,7 @@ mod tests {
             let frag = Fragment { px, py, active: &active, cells: super::super::gq::ONE_CELL };
             let mut counters = Counters::new(3);
             let want = spp.fragment_code::<false>(&frag, &edges, &mut counters);
-            let got = spp.table_code::<false>(&frag, &edges, &mut counters, line_indices_portable);
+            let got = spp.table_code::<false>(&frag, &edges, &mut counters, line_indices_portable, near_end_cell);
             assert_eq!(got, want, "case {k}");
         }
     }
