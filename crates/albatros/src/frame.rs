@@ -3,8 +3,16 @@
 //!
 //! A frame list is a sequence of set-up, screen-space, convex polygons in exact
 //! front-to-back priority order. Vertices and edges of all polygons live in two flat
-//! arrays, each polygon holding ranges into them, so that building a frame allocates
-//! per frame, never per polygon.
+//! arrays that run in step (edge `i` goes from vertex `i` to the polygon's next
+//! vertex), each polygon holding one range into both, and the texture set-ups of
+//! textured polygons in a third, so that building a frame allocates per frame, never
+//! per polygon.
+//!
+//! Bytes per polygon decide here: `many` (a million small triangles) writes, copies
+//! (the several GPs' join) and reads its frame list every frame. A [`FramePolygon`]
+//! is 64 bytes, one cache line (it was 128: the texture set-up inline, 60 bytes
+//! even when untextured, and a second range equal to the first); a triangle's whole
+//! share of the list is 64 + 3 vertices (36) + 3 edge codes (192) bytes.
 //!
 //! **Invariant**: polygon `i` never lies behind polygon `j > i` where they overlap on
 //! the screen (for non-intersecting geometry); every polygon is convex with at least
@@ -78,13 +86,12 @@ pub struct PolyTexture {
     pub color2: Rgb,
 }
 
-/// One set-up polygon of the frame list.
+/// One set-up polygon of the frame list (64 bytes: see the module's notes).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct FramePolygon {
-    /// Its vertices in [`FrameList::vertices`].
+    /// Its vertices in [`FrameList::vertices`], and its edges, the same range of
+    /// [`FrameList::edges`] (edge `i` from vertex `i` to the next).
     pub vertices: Range<u32>,
-    /// Its edges in [`FrameList::edges`].
-    pub edges: Range<u32>,
     /// Face or light.
     pub kind: PrimitiveKind,
     /// Material index (for a light: `u32::MAX`).
@@ -97,10 +104,16 @@ pub struct FramePolygon {
     pub inv_z: FracLin,
     /// Brightness, fractional-linear.
     pub intensity: FracLin,
-    /// Texture set-up, if textured.
-    pub texture: Option<PolyTexture>,
+    /// Its texture set-up in [`FrameList::textures`], or [`FramePolygon::NO_TEXTURE`]
+    /// ([`FrameList::texture_of`] reads it).
+    pub texture: u32,
     /// 6-bit transparency code.
     pub transparency: u8,
+}
+
+impl FramePolygon {
+    /// [`FramePolygon::texture`] of an untextured polygon.
+    pub const NO_TEXTURE: u32 = u32::MAX;
 }
 
 /// The frame list of one frame (one half of the FB).
@@ -122,9 +135,11 @@ pub struct FrameList {
     pub polygons: Vec<FramePolygon>,
     /// Vertices of all polygons.
     pub vertices: Vec<ScreenVertex>,
-    /// Edges of all polygons in the VP's code.
+    /// Edges of all polygons in the VP's code, in step with `vertices`.
     #[serde(skip)]
     pub edges: Vec<EdgeCode>,
+    /// Texture set-ups of the textured polygons ([`FramePolygon::texture`]).
+    pub textures: Vec<PolyTexture>,
 }
 
 impl FrameList {
@@ -135,20 +150,52 @@ impl FrameList {
 
     /// The edges of polygon `p`.
     pub fn edges_of(&self, p: &FramePolygon) -> &[EdgeCode] {
-        &self.edges[p.edges.start as usize..p.edges.end as usize]
+        &self.edges[p.vertices.start as usize..p.vertices.end as usize]
+    }
+
+    /// The texture set-up of polygon `p`, if it is textured.
+    #[inline]
+    pub fn texture_of(&self, p: &FramePolygon) -> Option<&PolyTexture> {
+        // `NO_TEXTURE` is past any list's end.
+        self.textures.get(p.texture as usize)
+    }
+
+    /// The texture set-up of polygon `index`, to change in place.
+    pub fn texture_of_mut(&mut self, index: usize) -> Option<&mut PolyTexture> {
+        self.textures.get_mut(self.polygons[index].texture as usize)
+    }
+
+    /// Gives polygon `index` the texture set-up `texture` (or none).
+    pub fn set_texture(&mut self, index: usize, texture: Option<PolyTexture>) {
+        match (texture, self.texture_of_mut(index)) {
+            (Some(t), Some(old)) => *old = t,
+            (Some(t), None) => {
+                self.polygons[index].texture = self.textures.len() as u32;
+                self.textures.push(t);
+            }
+            (None, _) => self.polygons[index].texture = FramePolygon::NO_TEXTURE,
+        }
+    }
+
+    /// The polygon `p` of another list moved to this one, its vertices (and edges)
+    /// starting at `v0` and its texture set-ups at `t0` in this one's lists.
+    #[inline]
+    pub(crate) fn moved(p: &FramePolygon, v0: u32, t0: u32) -> FramePolygon {
+        FramePolygon {
+            vertices: p.vertices.start + v0..p.vertices.end + v0,
+            texture: if p.texture == FramePolygon::NO_TEXTURE { p.texture } else { p.texture + t0 },
+            ..p.clone()
+        }
     }
 
     /// Appends another frame list's polygons (for the same screen) after this one's,
     /// in order.
     pub fn append(&mut self, other: &FrameList) {
-        let (v0, e0) = (self.vertices.len() as u32, self.edges.len() as u32);
+        let (v0, t0) = (self.vertices.len() as u32, self.textures.len() as u32);
         self.vertices.extend_from_slice(&other.vertices);
         self.edges.extend_from_slice(&other.edges);
-        self.polygons.extend(other.polygons.iter().map(|p| FramePolygon {
-            vertices: p.vertices.start + v0..p.vertices.end + v0,
-            edges: p.edges.start + e0..p.edges.end + e0,
-            ..p.clone()
-        }));
+        self.textures.extend_from_slice(&other.textures);
+        self.polygons.extend(other.polygons.iter().map(|p| Self::moved(p, v0, t0)));
     }
 
     /// Empties the list for reuse, keeping its allocations.
@@ -156,6 +203,7 @@ impl FrameList {
         self.polygons.clear();
         self.vertices.clear();
         self.edges.clear();
+        self.textures.clear();
     }
 }
 
@@ -225,7 +273,7 @@ pub mod dump {
                     color: p.color,
                     inv_z: p.inv_z,
                     intensity: p.intensity,
-                    texture: p.texture,
+                    texture: frame.texture_of(p).copied(),
                     transparency: p.transparency,
                 })
                 .collect();
@@ -239,3 +287,6 @@ pub mod dump {
         }
     }
 }
+
+// The layout the module's notes give: one cache line a polygon.
+const _: () = assert!(std::mem::size_of::<FramePolygon>() == 64);

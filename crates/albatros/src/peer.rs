@@ -171,8 +171,8 @@ pub fn triangle_count(frame: &FrameList) -> u64 {
 
 /// The base colour the peer uses for a polygon: its colour, or for a textured one the
 /// mean of the texture's two colours.
-fn base_color(p: &FramePolygon) -> [f32; 3] {
-    match &p.texture {
+fn base_color(frame: &FrameList, p: &FramePolygon) -> [f32; 3] {
+    match frame.texture_of(p) {
         Some(t) => ((t.color1 + t.color2) * 0.5).to_array(),
         None => p.color.to_array(),
     }
@@ -206,7 +206,7 @@ pub fn write_triangles(frame: &FrameList, out: &mut impl Write) -> io::Result<()
         if vs.len() < 3 {
             continue;
         }
-        let base = base_color(p);
+        let base = base_color(frame, p);
         fan.clear();
         fan.extend(vs.iter().map(|v| {
             let w = depth_of(v.inv_w);

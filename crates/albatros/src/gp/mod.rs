@@ -31,7 +31,7 @@ use serde::Serialize;
 
 use crate::db::bsp::{Bsp, BspFace, BspVertex, FaceRecord, NodeBounds, Piece, Plane, Slot, Visit};
 use crate::db::{Eye, Scene, Screen};
-use crate::frame::{FrameList, FramePolygon, PrimitiveKind};
+use crate::frame::{FrameList, PrimitiveKind};
 use clip::Window;
 use setup::{EyeVertex, Setup, Source};
 
@@ -423,6 +423,9 @@ struct Shared<'a> {
     frustum: Frustum,
     /// Whether subtrees outside it are passed over ([`Shared::culls`]).
     cull: bool,
+    /// Whether triangles take [`FrameBuilder::face`]'s path for triangles (the
+    /// tests compare it with the general one).
+    triangles: bool,
     /// Instance counters (counted once, here).
     counters: GpCounters,
 }
@@ -511,9 +514,10 @@ pub fn frame_into(
     frame_with(db, eye, screen, config, counters, memory, out, true);
 }
 
-/// [`frame_into`], with or without its shortcuts in the traversal (`shortcuts`:
-/// passing over the static tree's subtrees outside the view volume, and over the
-/// guests' places in a frame with no guests; the tests compare the two).
+/// [`frame_into`], with or without its shortcuts (`shortcuts`: passing over the
+/// static tree's subtrees outside the view volume, and over the guests' places in
+/// a frame with no guests; triangles set up by a path of their own; the tests
+/// compare the two).
 #[allow(clippy::too_many_arguments)]
 fn frame_with(
     db: &Database,
@@ -528,6 +532,7 @@ fn frame_with(
     let view = View::new(eye, screen);
     let mut shared = Shared::new(db, view, *config);
     shared.cull = shortcuts;
+    shared.triangles = shortcuts;
     let shared = shared;
     // Only the places where guests are attached this frame are visited (a
     // terrain's tree has twice as many empty places as faces).
@@ -614,10 +619,14 @@ fn frame_with(
         Some(parts) => {
             // The header empties the lists; their elements are kept here instead,
             // so that the join overwrites them rather than writing them afresh.
-            let kept =
-                (std::mem::take(&mut out.polygons), std::mem::take(&mut out.vertices), std::mem::take(&mut out.edges));
+            let kept = (
+                std::mem::take(&mut out.polygons),
+                std::mem::take(&mut out.vertices),
+                std::mem::take(&mut out.edges),
+                std::mem::take(&mut out.textures),
+            );
             Setup::new(&db.scene, &view).header(out);
-            (out.polygons, out.vertices, out.edges) = kept;
+            (out.polygons, out.vertices, out.edges, out.textures) = kept;
             // On the threads that set the stretches up.
             match (in_pool, memory.pool.as_ref()) {
                 (true, _) => join_stretches(&stretches, out, true),
@@ -671,7 +680,7 @@ fn join_stretches(stretches: &[FrameList], out: &mut FrameList, parallel: bool) 
         return;
     }
     let total = |f: fn(&FrameList) -> usize| stretches.iter().map(f).sum::<usize>();
-    let (np, nv, ne) = (total(|l| l.polygons.len()), total(|l| l.vertices.len()), total(|l| l.edges.len()));
+    let (np, nv, nt) = (total(|l| l.polygons.len()), total(|l| l.vertices.len()), total(|l| l.textures.len()));
     // Every element is overwritten below; these only size the lists (with any
     // element of the right kind as filler).
     let Some(first) = stretches.iter().find(|l| !l.polygons.is_empty()) else {
@@ -680,29 +689,33 @@ fn join_stretches(stretches: &[FrameList], out: &mut FrameList, parallel: bool) 
     };
     out.polygons.resize(np, first.polygons[0].clone());
     out.vertices.resize(nv, first.vertices[0]);
-    out.edges.resize(ne, first.edges[0]);
-    // Each stretch's part of the three lists, and its offsets.
+    out.edges.resize(nv, first.edges[0]);
+    match stretches.iter().find_map(|l| l.textures.first()) {
+        Some(&t) => out.textures.resize(nt, t),
+        None => out.textures.clear(),
+    }
+    // Each stretch's part of the four lists, and its offsets (edges run in step
+    // with vertices).
     let mut parts = Vec::with_capacity(stretches.len());
-    let (mut polygons, mut vertices, mut edges) = (&mut out.polygons[..], &mut out.vertices[..], &mut out.edges[..]);
-    let (mut v0, mut e0) = (0u32, 0u32);
+    let (mut polygons, mut vertices, mut edges, mut textures) =
+        (&mut out.polygons[..], &mut out.vertices[..], &mut out.edges[..], &mut out.textures[..]);
+    let (mut v0, mut t0) = (0u32, 0u32);
     for list in stretches {
         let (p, rest_p) = std::mem::take(&mut polygons).split_at_mut(list.polygons.len());
         let (v, rest_v) = std::mem::take(&mut vertices).split_at_mut(list.vertices.len());
         let (e, rest_e) = std::mem::take(&mut edges).split_at_mut(list.edges.len());
-        (polygons, vertices, edges) = (rest_p, rest_v, rest_e);
-        parts.push((list, p, v, e, v0, e0));
+        let (t, rest_t) = std::mem::take(&mut textures).split_at_mut(list.textures.len());
+        (polygons, vertices, edges, textures) = (rest_p, rest_v, rest_e, rest_t);
+        parts.push((list, p, v, e, t, v0, t0));
         v0 += list.vertices.len() as u32;
-        e0 += list.edges.len() as u32;
+        t0 += list.textures.len() as u32;
     }
-    parts.into_par_iter().for_each(|(list, p, v, e, v0, e0)| {
+    parts.into_par_iter().for_each(|(list, p, v, e, t, v0, t0)| {
         v.copy_from_slice(&list.vertices);
         e.copy_from_slice(&list.edges);
+        t.copy_from_slice(&list.textures);
         for (d, s) in p.iter_mut().zip(&list.polygons) {
-            *d = FramePolygon {
-                vertices: s.vertices.start + v0..s.vertices.end + v0,
-                edges: s.edges.start + e0..s.edges.end + e0,
-                ..s.clone()
-            };
+            *d = FrameList::moved(s, v0, t0);
         }
     });
 }
@@ -719,6 +732,7 @@ impl<'a> Shared<'a> {
             sun_world: db.scene.env.sun.as_dvec3().normalize_or_zero(),
             frustum: view.frustum(),
             cull: true,
+            triangles: true,
             counters: GpCounters::default(),
         };
         s.instances();
@@ -874,32 +888,72 @@ impl FrameBuilder<'_> {
         let material = &db.scene.materials[face.material as usize];
         let env = &db.scene.env;
         let scratch = &mut self.scratch;
-        scratch.eye.clear();
-        scratch.eye.reserve(vertices.len());
-        let mut and = 0x1Fu8;
-        let mut or = 0u8;
-        // The face's and the environment's constants, out of the vertex loop.
-        let smooth = material.shading == crate::db::Shading::Smooth;
-        let emissive = material.emissive;
+        // The face's and the environment's constants, out of the vertex loop: an
+        // emissive or flat-shaded face's `cos a` is the same at every vertex.
         let ambient = f64::from(env.ambient);
-        let pb = f64::from(env.background_brightness);
-        let attenuation = env.attenuation;
-        for v in vertices {
-            let p = to_eye.transform_point3(v.position);
-            let code = view.outcode(p);
-            and &= code;
-            or |= code;
-            let cos_a = if emissive {
-                1.0
-            } else {
-                let normal = if smooth { v.normal.as_dvec3() } else { face.plane.normal };
-                ambient + (1.0 - ambient) * normal.dot(sun).max(0.0)
-            };
-            // P5: P' = Pb + (P cos a - Pb) exp(-beta z). With no attenuation the
-            // factor is exp(0) = 1 exactly (z is finite), and not computed.
-            let fade = if attenuation == 0.0 { 1.0 } else { (-f64::from(attenuation) * p.z).exp() };
-            let intensity = pb + (f64::from(v.intensity) * cos_a - pb) * fade;
-            scratch.eye.push(EyeVertex { position: p, intensity });
+        let lit = |normal: DVec3| ambient + (1.0 - ambient) * normal.dot(sun).max(0.0);
+        let cos_a = match (material.emissive, material.shading) {
+            (true, _) => Some(1.0),
+            (false, crate::db::Shading::Smooth) => None,
+            (false, _) => Some(lit(face.plane.normal)),
+        };
+        let light = Lighting {
+            to_eye,
+            view,
+            cos_a,
+            ambient,
+            sun,
+            pb: f64::from(env.background_brightness),
+            attenuation: env.attenuation,
+        };
+        let eye_vertex = |v: &BspVertex| light.vertex(v);
+        let (and, or);
+        if let ([a, b, c], true) = (vertices, self.f.triangles) {
+            // A triangle (nearly every face of `many` and `terrain`): its vertices
+            // in registers, and when it lies inside the window (class 1) set up
+            // from them with no scratch list: the operations of the general path
+            // below, in the same order, without its loops and pushes.
+            let ((a, ca), (b, cb), (c, cc)) = (eye_vertex(a), eye_vertex(b), eye_vertex(c));
+            (and, or) = (ca & cb & cc, ca | cb | cc);
+            if and != 0 {
+                counters.outside += 1;
+                return;
+            }
+            if instance_class == 1 || or == 0 {
+                counters.face_class[0] += 1;
+                let eye = [a, b, c];
+                let plane_eye = eye_plane(&eye);
+                let screen = eye.map(|v| view.project(v.position));
+                let source =
+                    Source { kind: PrimitiveKind::Face, material: face.material, ids: (face.instance, face.face) };
+                let ok = self.setup.add_face(
+                    source,
+                    Some(material),
+                    material.color,
+                    &plane_eye,
+                    &eye,
+                    &screen,
+                    &self.f.model_to_eye[face.instance as usize],
+                    self.out,
+                );
+                if !ok {
+                    counters.degenerate += 1;
+                }
+                return;
+            }
+            scratch.eye.clear();
+            scratch.eye.extend_from_slice(&[a, b, c]);
+        } else {
+            scratch.eye.clear();
+            scratch.eye.reserve(vertices.len());
+            let (mut all, mut any) = (0x1Fu8, 0u8);
+            for v in vertices {
+                let (e, code) = eye_vertex(v);
+                all &= code;
+                any |= code;
+                scratch.eye.push(e);
+            }
+            (and, or) = (all, any);
         }
         if and != 0 {
             counters.outside += 1;
@@ -956,6 +1010,42 @@ impl FrameBuilder<'_> {
     }
 }
 
+/// What [`FrameBuilder::face`] needs to take a face's vertices to the eye and light
+/// them (P5).
+struct Lighting<'a> {
+    to_eye: &'a DMat4,
+    view: &'a View,
+    /// `cos a` of every vertex (emissive and flat-shaded faces), or `None` for
+    /// each vertex's own (smooth shading).
+    cos_a: Option<f64>,
+    ambient: f64,
+    /// The light's direction in the face's coordinates.
+    sun: DVec3,
+    /// The background brightness `Pb`.
+    pb: f64,
+    /// `beta`, the medium's attenuation.
+    attenuation: f32,
+}
+
+impl Lighting<'_> {
+    /// One vertex in eye space, lit, and its outcode.
+    #[inline(always)]
+    fn vertex(&self, v: &BspVertex) -> (EyeVertex, u8) {
+        let p = self.to_eye.transform_point3(v.position);
+        let code = self.view.outcode(p);
+        let ambient = self.ambient;
+        let cos_a = match self.cos_a {
+            Some(c) => c,
+            None => ambient + (1.0 - ambient) * v.normal.as_dvec3().dot(self.sun).max(0.0),
+        };
+        // P5: P' = Pb + (P cos a - Pb) exp(-beta z). With no attenuation the
+        // factor is exp(0) = 1 exactly (z is finite), and not computed.
+        let fade = if self.attenuation == 0.0 { 1.0 } else { (-f64::from(self.attenuation) * p.z).exp() };
+        let intensity = self.pb + (f64::from(v.intensity) * cos_a - self.pb) * fade;
+        (EyeVertex { position: p, intensity }, code)
+    }
+}
+
 /// The plane of an eye-space polygon (Newell), normal towards the front.
 fn eye_plane(vs: &[EyeVertex]) -> Plane {
     let p0 = vs[0].position;
@@ -1000,11 +1090,13 @@ mod tests {
     use super::*;
     use crate::db::builtin;
 
-    /// The traversal's shortcuts (passing over the subtrees outside the view
-    /// volume, and over the guests' places when there are none) change neither the
-    /// frame list (polygons, vertices, edge codes) nor a counter: built-in scenes
-    /// with and without light points and moving models, eyes turned every way (much
-    /// of the tree behind or beside them), one and two GPs.
+    /// The GP's shortcuts (passing over the subtrees outside the view volume, and
+    /// over the guests' places when there are none; the path for triangles) change
+    /// neither the frame list (polygons, vertices, edge codes, texture set-ups) nor
+    /// a counter: built-in scenes with and without light points and moving models,
+    /// textured and not, of triangles (terrain) and other polygons, eyes turned
+    /// every way (much of the tree behind or beside them, faces clipped by the
+    /// window and the near plane), one and two GPs.
     #[test]
     fn traversal_shortcuts_change_nothing() {
         let mut state = 0x9E37_79B9_7F4A_7C15u64;
@@ -1015,6 +1107,9 @@ mod tests {
             lo + (hi - lo) * (state >> 40) as f32 / (1u64 << 24) as f32
         };
         let mut culled_some = false;
+        // Triangles set up, texture set-ups, faces clipped by the window and by the
+        // near plane.
+        let mut seen = [0usize; 4];
         // Terrain has no guests; default has light points and a moving model.
         for (name, eyes) in [("default", 16), ("city", 16), ("terrain", 6)] {
             let db = Database::new(builtin::scene(name).expect("built-in"));
@@ -1037,11 +1132,18 @@ mod tests {
                     };
                     let (plain, fast) = (run(false), run(true));
                     assert!(plain == fast, "{name}, eye {eye:?}, {threads} threads");
+                    let (list, c) = &fast;
+                    let triangles = list.polygons.iter().filter(|p| p.vertices.len() == 3).count();
+                    seen[0] += triangles;
+                    seen[1] += list.textures.len();
+                    seen[2] += c.window_clipped as usize;
+                    seen[3] += c.near_clipped as usize;
                     let shared = Shared::new(&db, View::new(&eye, screen), config);
                     culled_some |= (0..db.bsp.nodes.len() as u32).any(|n| shared.culls(n));
                 }
             }
         }
         assert!(culled_some, "no subtree was culled: the test tests nothing");
+        assert!(seen.iter().all(|&k| k > 20), "every kind of face tested: {seen:?}");
     }
 }

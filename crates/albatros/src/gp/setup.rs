@@ -147,8 +147,14 @@ impl Setup {
             let par = (len_u / plane_eye.d.abs()) as f32;
             Some(PolyTexture { map: t.map, u, v, par, color1: t.color1, color2: t.color2 })
         });
+        let texture = match texture {
+            Some(t) => {
+                out.textures.push(t);
+                out.textures.len() as u32 - 1
+            }
+            None => FramePolygon::NO_TEXTURE,
+        };
         let vstart = out.vertices.len() as u32;
-        let estart = out.edges.len() as u32;
         let inv_z32 = FracLin { a: inv_z[0] as f32, b: inv_z[1] as f32, c: inv_z[2] as f32 };
         out.vertices.extend(self.snapped.iter().map(|a| {
             let (x, y) = (a.0.to_f32(), a.1.to_f32());
@@ -157,7 +163,6 @@ impl Setup {
         EdgeCode::push_outline(&self.snapped, inside_positive, self.root_side, &mut out.edges);
         out.polygons.push(FramePolygon {
             vertices: vstart..out.vertices.len() as u32,
-            edges: estart..out.edges.len() as u32,
             kind: source.kind,
             material: source.material,
             source: source.ids,
@@ -208,6 +213,9 @@ impl Setup {
 /// needs a strictly convex polygon), and returns the orientation (`true`: the interior
 /// is where `(b - a) x (p - a) > 0`), or `None` for a degenerate outline.
 pub fn snap_outline(outline: &[DVec2], s: &mut Vec<(ScreenFx, ScreenFx)>) -> Option<bool> {
+    if let [a, b, c] = outline {
+        return snap_triangle([a, b, c], s);
+    }
     let sign = snap_points(outline, s)?;
     // Nearly every outline is strictly convex already (every turn the area's
     // way): then the passes of `drop_turns` remove nothing, and each of their checks
@@ -218,6 +226,23 @@ pub fn snap_outline(outline: &[DVec2], s: &mut Vec<(ScreenFx, ScreenFx)>) -> Opt
         return Some(sign > 0);
     }
     drop_turns(s, sign)
+}
+
+/// [`snap_outline`] of a triangle (the common case): its passes and checks keep
+/// nothing or all three points. Snapped, two equal points leave fewer than three
+/// (equal neighbours are merged, then a last point equal to the first); three
+/// distinct ones stay, a triangle of non-zero area being strictly convex (each of
+/// its turns is its doubled area).
+#[inline]
+fn snap_triangle(outline: [&DVec2; 3], s: &mut Vec<(ScreenFx, ScreenFx)>) -> Option<bool> {
+    let q = outline.map(|p| (ScreenFx::from_f64(p.x), ScreenFx::from_f64(p.y)));
+    s.clear();
+    if q[0] == q[1] || q[1] == q[2] || q[2] == q[0] {
+        return None;
+    }
+    s.extend_from_slice(&q);
+    let area2 = shoelace(&q);
+    (area2 != 0).then_some(area2 > 0)
 }
 
 /// The first step of [`snap_outline`]: the outline snapped into `s` without
@@ -280,19 +305,17 @@ pub fn push_flat_polygon(out: &mut FrameList, outline: &[DVec2], color: Rgb, inv
     let Some(inside_positive) = snap_outline(outline, &mut snapped) else { return false };
     let root_side = 4u32 << CellProcessors::root_level_for(out.width, out.height);
     let vstart = out.vertices.len() as u32;
-    let estart = out.edges.len() as u32;
     out.vertices.extend(snapped.iter().map(|a| ScreenVertex { x: a.0.to_f32(), y: a.1.to_f32(), inv_w: inv_z }));
     EdgeCode::push_outline(&snapped, inside_positive, root_side, &mut out.edges);
     out.polygons.push(FramePolygon {
         vertices: vstart..out.vertices.len() as u32,
-        edges: estart..out.edges.len() as u32,
         kind: PrimitiveKind::Face,
         material: 0,
         source: (0, out.polygons.len() as u32),
         color,
         inv_z: FracLin { a: 0.0, b: 0.0, c: inv_z },
         intensity: FracLin { a: 0.0, b: 0.0, c: inv_z },
-        texture: None,
+        texture: FramePolygon::NO_TEXTURE,
         transparency: 0,
     });
     true

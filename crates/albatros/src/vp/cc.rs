@@ -117,18 +117,27 @@ pub struct ColorComputers<'a> {
     pub footprint_scale: f32,
     /// The texture maps.
     pub textures: &'a TextureMaps,
+    /// The frame's texture set-ups ([`FrameList::textures`]).
+    pub set_ups: &'a [PolyTexture],
 }
 
 impl<'a> ColorComputers<'a> {
     /// The registers for a frame, with the scene's texture maps.
-    pub fn new(frame: &FrameList, textures: &'a TextureMaps) -> Self {
+    pub fn new(frame: &'a FrameList, textures: &'a TextureMaps) -> Self {
         let inv_visibility = if frame.visibility.is_finite() { 1.0 / frame.visibility } else { 0.0 };
         Self {
             fog_color: frame.fog_color,
             inv_visibility,
             footprint_scale: FOOTPRINT_FACTOR * frame.pixel_angle,
             textures,
+            set_ups: &frame.textures,
         }
+    }
+
+    /// The texture set-up of `poly` ([`FrameList::texture_of`]).
+    #[inline(always)]
+    fn set_up(&self, poly: &FramePolygon) -> Option<&'a PolyTexture> {
+        self.set_ups.get(poly.texture as usize)
     }
 
     /// Colours the visible pixels of one cell of polygon `poly` into `out` (what it
@@ -157,7 +166,7 @@ impl<'a> ColorComputers<'a> {
     /// Whether `poly` has a texture whose map exists (a texture whose map is
     /// missing is not drawn: the face keeps its colour).
     fn drawn_texture(&self, poly: &FramePolygon) -> bool {
-        poly.texture.as_ref().is_some_and(|t| self.textures.get(t.map).is_some())
+        self.set_up(poly).is_some_and(|t| self.textures.get(t.map).is_some())
     }
 
     /// [`Self::shade`]'s colours by the best copy the processor runs. (Not generic
@@ -349,7 +358,7 @@ impl<'a> CellShader<'a> {
     #[inline(always)]
     fn new(cc: &ColorComputers<'a>, poly: &'a FramePolygon, vis: &Visible) -> Self {
         let (qx, qy) = (vis.px as f32 + 1.5, vis.py as f32 + 1.5);
-        let texture = poly.texture.as_ref().and_then(|t| Some((t, cc.textures.get(t.map)?)));
+        let texture = cc.set_up(poly).and_then(|t| Some((t, cc.textures.get(t.map)?)));
         let (u_q, v_q) = texture.map_or((0.0, 0.0), |(t, _)| (t.u.eval(qx, qy), t.v.eval(qx, qy)));
         Self {
             poly,
@@ -638,7 +647,7 @@ mod tests {
         let step = |f: &FracLin| f.eval(qx, qy) + f.a * dx + f.b * dy;
         let z = 1.0 / step(&poly.inv_z).max(f32::MIN_POSITIVE);
         let intensity = (step(&poly.intensity) * z).max(0.0);
-        let c0 = match poly.texture.as_ref().and_then(|t| Some((t, cc.textures.get(t.map)?))) {
+        let c0 = match cc.set_up(poly).and_then(|t| Some((t, cc.textures.get(t.map)?))) {
             Some((t, map)) => {
                 let m = map.sample(step(&t.u) * z, step(&t.v) * z, cc.footprint_scale * z * z * t.par);
                 t.color1 * m + t.color2 * (1.0 - m)
@@ -682,24 +691,25 @@ mod tests {
             });
             let poly = FramePolygon {
                 vertices: 0..0,
-                edges: 0..0,
                 kind: PrimitiveKind::Face,
                 material: 0,
                 source: (0, 0),
                 color: Vec3::new(next(), next(), next()),
                 inv_z,
                 intensity,
-                texture,
+                texture: if texture.is_some() { 0 } else { FramePolygon::NO_TEXTURE },
                 transparency: 0,
             };
+            let set_ups = texture.as_slice();
             let cc = ColorComputers {
                 fog_color: Vec3::new(next(), next(), next()),
                 inv_visibility: if round % 3 == 0 { 0.0 } else { next() * 1e-2 },
                 footprint_scale: FOOTPRINT_FACTOR * 1e-3,
                 textures: &maps,
+                set_ups,
             };
             let flat = cc.flat_color(&poly);
-            let drawn = poly.texture.as_ref().is_some_and(|t| t.map == 0);
+            let drawn = texture.is_some_and(|t| t.map == 0);
             assert_eq!(flat.is_some(), !moving && !drawn, "round {round}");
             let Some(flat) = flat else { continue };
             for _ in 0..8 {
@@ -750,21 +760,22 @@ mod tests {
             });
             let poly = FramePolygon {
                 vertices: 0..0,
-                edges: 0..0,
                 kind: PrimitiveKind::Face,
                 material: 0,
                 source: (0, 0),
                 color: Vec3::new(next(), next(), next()),
                 inv_z,
                 intensity,
-                texture,
+                texture: if texture.is_some() { 0 } else { FramePolygon::NO_TEXTURE },
                 transparency: 0,
             };
+            let set_ups = texture.as_slice();
             let cc = ColorComputers {
                 fog_color: Vec3::new(next(), next(), next()),
                 inv_visibility: if round % 5 == 0 { 0.0 } else { next() * 1e-3 },
                 footprint_scale: FOOTPRINT_FACTOR * 1e-3,
                 textures: &maps,
+                set_ups,
             };
             // Any set of visible pixels, from one to all sixteen; a third of them
             // most of the cell (coloured as whole rows), all of it, or all but one.

@@ -307,7 +307,7 @@ fn checker_ground_at_a_glancing_angle_matches_the_reference() {
     // of it drops P2's factor 2 from the footprint (for the record).
     let with_par = |scale: f32| {
         let mut f = frame.clone();
-        f.polygons[0].texture.as_mut().unwrap().par *= scale;
+        f.texture_of_mut(0).unwrap().par *= scale;
         red(&render(&f, &maps))
     };
     let no_mip = with_par(0.0);
@@ -415,7 +415,7 @@ fn texture_origin_shift_keeps_a_huge_plane_exact_near_the_eye() {
     let frame = frame_of(&scene);
     assert_eq!(frame.polygons.len(), 1);
     let poly = &frame.polygons[0];
-    let tex = poly.texture.unwrap();
+    let tex = *frame.texture_of(poly).unwrap();
     let view = View::new(&scene.eye, scene.screen);
     let rot = view.world_to_eye;
     // The eye-space set-up in f64, as the GP does it: u = g . P + D, plane n . P = d.
@@ -521,14 +521,17 @@ fn fog_matches_the_formula_on_single_pixels() {
         // mean 128/255; the blend of C1 and C2 is then shaded and fogged.
         let (c1, c2) = (Vec3::new(0.9, 0.9, 0.3), Vec3::new(0.1, 0.3, 0.5));
         let inv_z = frame.polygons[0].inv_z.c;
-        frame.polygons[0].texture = Some(PolyTexture {
-            map: 0,
-            u: FracLin { a: 0.0, b: 0.0, c: 0.3 * inv_z },
-            v: FracLin { a: 0.0, b: 0.0, c: 0.6 * inv_z },
-            par: 1e9,
-            color1: c1,
-            color2: c2,
-        });
+        frame.set_texture(
+            0,
+            Some(PolyTexture {
+                map: 0,
+                u: FracLin { a: 0.0, b: 0.0, c: 0.3 * inv_z },
+                v: FracLin { a: 0.0, b: 0.0, c: 0.6 * inv_z },
+                par: 1e9,
+                color1: c1,
+                color2: c2,
+            }),
+        );
         let img = render(&frame, &maps);
         let t = 128.0 / 255.0;
         let blended = c1 * t + c2 * (1.0 - t);
@@ -662,14 +665,17 @@ fn bad_texture_input_gives_clear_errors_and_no_panic() {
     let colour = Vec3::new(0.25, 0.5, 0.75);
     assert!(push_flat_polygon(&mut frame, &square(0.0, 16.0), colour, 0.1));
     let plain = render(&frame, &TextureMaps::default());
-    frame.polygons[0].texture = Some(PolyTexture {
-        map: 7,
-        u: FracLin::default(),
-        v: FracLin::default(),
-        par: 1.0,
-        color1: Vec3::ONE,
-        color2: Vec3::ZERO,
-    });
+    frame.set_texture(
+        0,
+        Some(PolyTexture {
+            map: 7,
+            u: FracLin::default(),
+            v: FracLin::default(),
+            par: 1.0,
+            color1: Vec3::ONE,
+            color2: Vec3::ZERO,
+        }),
+    );
     for maps in [TextureMaps::default(), TextureMaps::new(vec![texture::builtin("grass").unwrap()])] {
         let img = render(&frame, &maps);
         assert_eq!(img, plain, "a missing map falls back to the face's colour");
