@@ -415,21 +415,6 @@ pub struct CellProcessors {
     queued: u32,
 }
 
-/// What [`CellProcessors::step`] decided about a cell's four children (bit `c` for
-/// child `c`): those IN (and open), those IN or crossed (and open), where their lists
-/// are and end.
-struct Step {
-    /// IN and open: no edge crosses them.
-    ci: u8,
-    /// IN or crossed, and open: the children to descend into.
-    cri: u8,
-    /// The children's block of lists in [`CellProcessors::lists`]; child `c`'s list
-    /// starts at `block + c stride`.
-    block: usize,
-    /// Where the children's lists end, relative to `block`.
-    ends: [usize; 4],
-}
-
 /// A level-L cell handed to the SPPs, with the edges that cross it; or, from
 /// [`CellProcessors::descend_filling`] only, up to four level-L cells wholly inside
 /// the polygon, siblings in a cell of level L - 1 (`cells`).
@@ -697,31 +682,24 @@ impl CellProcessors {
             return;
         }
         let half = 1i64 << (EDGE_FRAC_BITS + (self.root_level + 1 - start.level));
-        if start.level + 1 == self.root_level {
-            self.split_last::<STATS, FILL>(start, start_z, first, n, half, poly, counters, spp);
-        } else {
-            self.split::<STATS, FILL>(start, start_z, first, n, half, poly, counters, spp);
-        }
+        self.split::<STATS, FILL>(start, start_z, first, n, half, poly, counters, spp);
     }
 
-    /// One GQ step's codes: the four children of `cell` (Z-order index `z`, its `len`
-    /// active edges at `list` in its level's lists, `half` its half side in
-    /// [`EdgeCoord`] units) tested against every edge and the mask memory, the IN ones
-    /// marked (an `opaque` polygon's), the lists of those descended into with edges
-    /// written, and (`STATS`) counted. `None` with counting off when the mask covers
-    /// all four.
+    /// One GQ step: splits `cell` (Z-order index `z`, its `len` active edges at `list`
+    /// in its level's lists, `half` its half side in [`EdgeCoord`] units) into four
+    /// children and descends into those inside or crossed.
     #[expect(clippy::too_many_arguments, reason = "the descent's state, passed in registers")]
-    #[inline(always)]
-    fn step<const STATS: bool>(
+    fn split<const STATS: bool, const FILL: bool>(
         &mut self,
         cell: Cell,
         z: usize,
         list: usize,
         len: usize,
         half: i64,
-        opaque: bool,
+        poly: &GqPolygon,
         counters: &mut Counters,
-    ) -> Option<Step> {
+        spp: &mut impl FnMut(Fragment),
+    ) {
         let k = cell.level as usize;
         let child_level = cell.level + 1;
 
@@ -733,7 +711,7 @@ impl CellProcessors {
         // read as covered (pre-masked), whatever the mode.
         let m = self.memories[child_level as usize].children(z);
         if !STATS && m == 0xF {
-            return None;
+            return;
         }
         let stride = self.stride;
         // The children's block of lists, after the cell's own.
@@ -787,33 +765,9 @@ impl CellProcessors {
                 record_children(rec, cell, cri_all, m, ci);
             }
         }
-        if opaque && mem_on {
+        if poly.opaque && mem_on {
             self.memories[child_level as usize].set_children(z, ci);
         }
-        Some(Step { ci, cri, block, ends })
-    }
-
-    /// One GQ step above the last two levels: splits `cell` (see [`Self::step`]) and
-    /// descends into its children inside or crossed, [`Self::split_last`] for
-    /// children of level L - 1.
-    #[expect(clippy::too_many_arguments, reason = "the descent's state, passed in registers")]
-    fn split<const STATS: bool, const FILL: bool>(
-        &mut self,
-        cell: Cell,
-        z: usize,
-        list: usize,
-        len: usize,
-        half: i64,
-        poly: &GqPolygon,
-        counters: &mut Counters,
-        spp: &mut impl FnMut(Fragment),
-    ) {
-        let Some(Step { ci, cri, block, ends }) = self.step::<STATS>(cell, z, list, len, half, poly.opaque, counters)
-        else {
-            return;
-        };
-        let child_level = cell.level + 1;
-        let stride = self.stride;
         let mut todo = cri;
         while todo != 0 {
             let c = todo.trailing_zeros();
@@ -825,62 +779,34 @@ impl CellProcessors {
                     self.inside[child_level as usize].push(4 * z + c as usize);
                     self.queued |= 1 << child_level;
                 }
-                self.fill(child_cell, 4 * z + c as usize, poly.opaque, spp);
+                if child_level == self.root_level {
+                    // In the descent's order, cell by cell (this cell of the parent).
+                    spp(Fragment { px: cell.x * 8, py: cell.y * 8, active: &[], cells: 1 << c });
+                } else {
+                    self.fill(child_cell, 4 * z + c as usize, poly.opaque, spp);
+                }
                 continue;
             }
             let (start, end) = (c as usize * stride, ends[c as usize]);
-            let args = (child_cell, 4 * z + c as usize, block + start, end - start, half >> 1);
-            if child_level + 1 == self.root_level {
-                self.split_last::<STATS, FILL>(args.0, args.1, args.2, args.3, args.4, poly, counters, spp);
+            if child_level == self.root_level {
+                spp(Fragment {
+                    px: child_cell.x * 4,
+                    py: child_cell.y * 4,
+                    active: &self.lists[block + start..block + end],
+                    cells: ONE_CELL,
+                });
             } else {
-                self.split::<STATS, FILL>(args.0, args.1, args.2, args.3, args.4, poly, counters, spp);
+                self.split::<STATS, FILL>(
+                    child_cell,
+                    4 * z + c as usize,
+                    block + start,
+                    end - start,
+                    half >> 1,
+                    poly,
+                    counters,
+                    spp,
+                );
             }
-        }
-    }
-
-    /// The last GQ step: splits `cell`, of level L - 1 (see [`Self::step`]), and
-    /// hands its children inside or crossed to `spp`. Apart from [`Self::split`] so
-    /// that neither tests the level per child, and most small polygons' splits (of
-    /// this level) run no recursion.
-    #[expect(clippy::too_many_arguments, reason = "the descent's state, passed in registers")]
-    fn split_last<const STATS: bool, const FILL: bool>(
-        &mut self,
-        cell: Cell,
-        z: usize,
-        list: usize,
-        len: usize,
-        half: i64,
-        poly: &GqPolygon,
-        counters: &mut Counters,
-        spp: &mut impl FnMut(Fragment),
-    ) {
-        let Some(Step { ci, cri, block, ends }) = self.step::<STATS>(cell, z, list, len, half, poly.opaque, counters)
-        else {
-            return;
-        };
-        let stride = self.stride;
-        let (px, py) = (cell.x * 8, cell.y * 8);
-        let mut todo = cri;
-        while todo != 0 {
-            let c = todo.trailing_zeros();
-            todo &= todo - 1;
-            if FILL && ci >> c & 1 == 1 {
-                // Wholly inside: no edge, in the descent's order, cell by cell (this
-                // cell of the parent).
-                if self.hierarchical && poly.opaque {
-                    self.inside[self.root_level as usize].push(4 * z + c as usize);
-                    self.queued |= 1 << self.root_level;
-                }
-                spp(Fragment { px, py, active: &[], cells: 1 << c });
-                continue;
-            }
-            let (start, end) = (block + c as usize * stride, block + ends[c as usize]);
-            spp(Fragment {
-                px: px + 4 * (c & 1),
-                py: py + 4 * (c >> 1),
-                active: &self.lists[start..end],
-                cells: ONE_CELL,
-            });
         }
     }
 
