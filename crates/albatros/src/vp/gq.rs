@@ -38,7 +38,7 @@ pub struct ActiveEdge {
     pub edge: u32,
     /// TG and LR as the high bits of an address of [`CHILD_CODES`]: bit
     /// [`KIND_VERTICAL`] for TG = [`Tg::Vertical`], bit [`KIND_LR`] for LR (the polygon
-    /// lies on the side of greater V). One word, so that a child's copy moves the
+    /// lies on the side of greater V), bit [`KIND_DOWN`] for `V1 > V2`. One word, so that a child's copy moves the
     /// edge's index and kind together.
     kind: u32,
     /// V1: V at the cell's first border, relative to the cell.
@@ -51,6 +51,13 @@ pub struct ActiveEdge {
 const KIND_VERTICAL: u32 = 1 << 8;
 /// [`ActiveEdge`]'s kind bit for LR.
 const KIND_LR: u32 = 1 << 9;
+/// [`ActiveEdge`]'s kind bit for V decreasing along the edge's direction of travel
+/// (`V1 > V2`). The sign of `V2 - V1` is the slope's, in every cell of the descent (a
+/// child's V1 and V2 are its parent's V1 and midpoint, or midpoint and V2, less the
+/// same amount; the midpoint lies between them), so it is found once, at the
+/// starting cell, and [`child_codes`] need not order V1, the midpoint and V2 (when
+/// they are equal, either order serves).
+const KIND_DOWN: u32 = 1 << 10;
 
 impl ActiveEdge {
     /// An entry of the scratch lists before it is written.
@@ -64,11 +71,14 @@ impl ActiveEdge {
             Tg::Horizontal => (x0, y0),
         };
         let origin = EdgeCoord::pixels(origin).0;
+        let (v1, v2) = (e.v_at(t0).0 - origin, e.v_at(t0 + side).0 - origin);
         Self {
             edge,
-            kind: if e.tg == Tg::Vertical { KIND_VERTICAL } else { 0 } | if e.lr { KIND_LR } else { 0 },
-            v1: EdgeCoord(e.v_at(t0).0 - origin),
-            v2: EdgeCoord(e.v_at(t0 + side).0 - origin),
+            kind: if e.tg == Tg::Vertical { KIND_VERTICAL } else { 0 }
+                | if e.lr { KIND_LR } else { 0 }
+                | if v1 > v2 { KIND_DOWN } else { 0 },
+            v1: EdgeCoord(v1),
+            v2: EdgeCoord(v2),
         }
     }
 
@@ -839,47 +849,57 @@ struct ChildCodes {
 }
 
 /// The GQ ROM's answer ([`GqRom`](super::tables::GqRom), P1 eq. 1) for one edge with
-/// `V1 = d1`, `V2 = d2` relative to the cell, half a cell `half` and TG, LR in `kind`
-/// (see [`ActiveEdge`]), by comparisons and one read of [`CHILD_CODES`] (the same bits
-/// as the plain definition `edge_code`, tested). A child's stretch of the line is `(V1, Vm)` or `(Vm, V2)`
-/// (halves 0 and 1 along V's lines); with `lo`, `hi` its least and greatest V, the
-/// ROM's readings are the thermometer codes `(hi <= 0) + (hi <= half)` (how many of
-/// the children across it the line lies at or before the near border of) and
-/// `(lo >= half) + (lo >= 2 half)` (at or beyond the far border of), each 0, 1 or 2
-/// (`half > 0`), two bits of the table's address each: 8 comparisons and no variable
-/// shift, the children's bit order by TG and the sides by LR left to the table.
+/// `V1 = d1`, `V2 = d2` relative to the cell, half a cell `half` and TG, LR, `V1 > V2`
+/// in `kind` (see [`ActiveEdge`]), by comparisons and one read of [`CHILD_CODES`]
+/// (the same bits as the plain definition `edge_code`, tested). A child's stretch of
+/// the line is `(V1, Vm)` or `(Vm, V2)` (halves 0 and 1 along V's lines); with `lo`,
+/// `hi` its least and greatest V, the ROM's readings are the thermometer codes
+/// `(hi <= 0) + (hi <= half)` (how many of the children across it the line lies at or
+/// before the near border of) and `(lo >= half) + (lo >= 2 half)` (at or beyond the far
+/// border of), each 0, 1 or 2 (`half > 0`), two bits of the table's address each: 8
+/// comparisons and no variable shift, the children's bit order by TG, the sides by
+/// LR and which half is which by [`KIND_DOWN`] left to the table. The midpoint lies
+/// between V1 and V2, so the stretches are `(lo, Vm)` and `(Vm, hi)` with `lo`, `hi`
+/// the least and greatest of V1, V2: the first half's when V increases, the second's
+/// when it decreases ([`KIND_DOWN`], known for the edge).
 #[inline(always)]
 fn child_codes(d1: i64, d2: i64, half: i64, kind: u32) -> ChildCodes {
     let dm = (d1 + d2) >> 1;
-    let (lo0, hi0) = (d1.min(dm), d1.max(dm));
-    let (lo1, hi1) = (dm.min(d2), dm.max(d2));
+    let (lo, hi) = if kind & KIND_DOWN != 0 { (d2, d1) } else { (d1, d2) };
     // `neg(v)`: 1 when `v < 0`, by its sign bit (|V| < 2^46: no overflow).
     let neg = |v: i64| (v as u64 >> 63) as u32;
-    let before0 = neg(hi0 - 1) + neg(hi0 - (half + 1));
-    let before1 = neg(hi1 - 1) + neg(hi1 - (half + 1));
+    // The stretch `(lo, Vm)`: its greatest V is Vm; `(Vm, hi)`: its least is Vm.
+    let before_low = neg(dm - 1) + neg(dm - (half + 1));
+    let before_high = neg(hi - 1) + neg(hi - (half + 1));
     // Two less the "at or beyond" codes.
-    let short0 = neg(lo0 - half) + neg(lo0 - 2 * half);
-    let short1 = neg(lo1 - half) + neg(lo1 - 2 * half);
-    let address = (before0 | before1 << 2 | short0 << 4 | short1 << 6 | kind) as usize & (CHILD_CODES.len() - 1);
+    let short_low = neg(lo - half) + neg(lo - 2 * half);
+    let short_high = neg(dm - half) + neg(dm - 2 * half);
+    let address =
+        (before_low | before_high << 2 | short_low << 4 | short_high << 6 | kind) as usize & (CHILD_CODES.len() - 1);
     ChildCodes { codes: u32::from(CHILD_CODES[address]), vm: dm }
 }
 
 /// [`child_codes`]'s table: at address `b0 | b1 << 2 | a0 << 4 | a1 << 6 | kind`
 /// (thermometer codes `b` "at or before the near border", `a` "at or beyond the far
-/// border" of halves 0 and 1 of the stretch; `kind` [`KIND_VERTICAL`] and [`KIND_LR`]),
-/// CI in bits 0-3, CRI in bits 4-7, `CRI & !CI` in bits 8-11. Addresses with a code 3
-/// never occur.
-const CHILD_CODES: [u16; 1024] = child_code_table();
+/// border" of the stretches `(lo, Vm)` (0) and `(Vm, hi)` (1); `kind` [`KIND_VERTICAL`],
+/// [`KIND_LR`] and [`KIND_DOWN`], which makes stretch 1 the first half along V's
+/// lines), CI in bits 0-3, CRI in bits 4-7, `CRI & !CI` in bits 8-11. Addresses with
+/// a code 3 never occur.
+const CHILD_CODES: [u16; 2048] = child_code_table();
 
 /// Builds [`CHILD_CODES`]: the bits the plain `edge_code` forms, by the same rule.
-const fn child_code_table() -> [u16; 1024] {
-    let mut table = [0u16; 1024];
+const fn child_code_table() -> [u16; 2048] {
+    let mut table = [0u16; 2048];
     let mut address = 0;
-    while address < 1024 {
-        let (b0, b1) = (address & 3, address >> 2 & 3);
+    while address < 2048 {
+        let (mut b0, mut b1) = (address & 3, address >> 2 & 3);
         // The address holds two less the "at or beyond" codes.
         // (3 never occurs: read as 2.)
-        let (a0, a1) = (2usize.saturating_sub(address >> 4 & 3), 2usize.saturating_sub(address >> 6 & 3));
+        let (mut a0, mut a1) = (2usize.saturating_sub(address >> 4 & 3), 2usize.saturating_sub(address >> 6 & 3));
+        if address as u32 & KIND_DOWN != 0 {
+            // V decreases: the stretch `(Vm, hi)` is the first half along V's lines.
+            (b0, b1, a0, a1) = (b1, b0, a1, a0);
+        }
         let vertical = address as u32 & KIND_VERTICAL != 0;
         let lr = address as u32 & KIND_LR != 0;
         // Child bit of (along, across) = (0, 1) and (1, 0), as in `edge_code`.
@@ -1078,7 +1098,9 @@ mod tests {
                         want,
                         "d1 {d1}, d2 {d2}, half {half}, {tg:?}, lr {lr}"
                     );
-                    let kind = if vertical { KIND_VERTICAL } else { 0 } | if lr { KIND_LR } else { 0 };
+                    let kind = if vertical { KIND_VERTICAL } else { 0 }
+                        | if lr { KIND_LR } else { 0 }
+                        | if d1 > d2 { KIND_DOWN } else { 0 };
                     let fast = child_codes(d1, d2, half, kind);
                     let codes = u32::from(ci) | u32::from(cri) << 4 | u32::from(cri & !ci) << 8;
                     assert_eq!(fast, ChildCodes { codes, vm: dm }, "d1 {d1}, d2 {d2}, half {half}, {tg:?}, lr {lr}");
@@ -1119,6 +1141,59 @@ mod tests {
         }
     }
 
+    /// A test triangle: its edges, pixel box and vertices in snapped units.
+    type Triangle = (Vec<EdgeCode>, [u32; 4], [(i64, i64); 3]);
+
+    /// Triangle `k` of the descent tests on a `SIDE`-pixel square screen (`root_side`
+    /// the root cell's side), vertices drawn by `next`: its edges, pixel box as the VP
+    /// forms it, and vertices in snapped units; `None` for a degenerate one.
+    fn random_triangle(k: u32, root_side: u32, next: &mut impl FnMut(u64) -> u64) -> Option<Triangle> {
+        const SIDE: u32 = 256;
+        let snap = i64::from(SNAP_ONE);
+        // Vertices in snapped units; a third of the triangles slivers (the third
+        // vertex near the first two's line), some tiny.
+        // Sizes: the screen, 8 pixels, and 1 to 10 pixels (`many`'s triangles).
+        let scale = match k % 5 {
+            0 => 8 * snap as u64,
+            1 | 2 => (1 + next(10)) * snap as u64,
+            _ => u64::from(SIDE) * snap as u64,
+        };
+        let (ox, oy) = (
+            next(u64::from(SIDE) * snap as u64 - scale + 1) as i64,
+            next(u64::from(SIDE) * snap as u64 - scale + 1) as i64,
+        );
+        let mut p = [(0i64, 0i64); 3];
+        for v in &mut p[..2] {
+            *v = (ox + next(scale) as i64, oy + next(scale) as i64);
+        }
+        p[2] = if k.is_multiple_of(3) {
+            let t = next(1024) as i64;
+            let (x, y) = (p[0].0 + (p[1].0 - p[0].0) * t / 1024, p[0].1 + (p[1].1 - p[0].1) * t / 1024);
+            (
+                (x + next(65) as i64 - 32).clamp(0, (SIDE as i64) * snap - 1),
+                (y + next(65) as i64 - 32).clamp(0, (SIDE as i64) * snap - 1),
+            )
+        } else {
+            (ox + next(scale) as i64, oy + next(scale) as i64)
+        };
+        let cross = (p[1].0 - p[0].0) * (p[2].1 - p[0].1) - (p[1].1 - p[0].1) * (p[2].0 - p[0].0);
+        if cross == 0 {
+            return None;
+        }
+        let fx = |v: (i64, i64)| (ScreenFx(v.0 as i32), ScreenFx(v.1 as i32));
+        let edges = (0..3)
+            .map(|i| EdgeCode::new(fx(p[i]), fx(p[(i + 1) % 3]), cross > 0, root_side))
+            .collect::<Option<Vec<_>>>()?;
+        // The box as the VP forms it: a pixel wider each way, inside the screen.
+        let lo = |v: i64| ((v.div_euclid(snap) - 1).max(0) as u32).min(SIDE);
+        let hi = |v: i64| ((v + snap - 1).div_euclid(snap) + 1).clamp(0, i64::from(SIDE)) as u32;
+        let (xs, ys) = (p.map(|v| v.0), p.map(|v| v.1));
+        let (x0, x1) = (*xs.iter().min().unwrap(), *xs.iter().max().unwrap());
+        let (y0, y1) = (*ys.iter().min().unwrap(), *ys.iter().max().unwrap());
+        let bbox = [lo(x0), hi(x1), lo(y0), hi(y1)];
+        Some((edges, bbox, p))
+    }
+
     /// The descent (lists written by index, codes by the table, the split left when
     /// every child is OUT) reaches the cells the plain descent does, with the same
     /// active edges, in the same order: random triangles, slivers and tiny ones
@@ -1135,53 +1210,32 @@ mod tests {
             state ^= state << 17;
             state % n
         };
-        let snap = i64::from(SNAP_ONE);
         let mut checked = 0;
         for k in 0..3000 {
-            // Vertices in snapped units; a third of the triangles slivers (the third
-            // vertex near the first two's line), some tiny.
-            let scale = if k % 5 == 0 { 8 * snap as u64 } else { u64::from(SIDE) * snap as u64 };
-            let (ox, oy) = (
-                next(u64::from(SIDE) * snap as u64 - scale + 1) as i64,
-                next(u64::from(SIDE) * snap as u64 - scale + 1) as i64,
-            );
-            let mut p = [(0i64, 0i64); 3];
-            for v in &mut p[..2] {
-                *v = (ox + next(scale) as i64, oy + next(scale) as i64);
-            }
-            p[2] = if k % 3 == 0 {
-                let t = next(1024) as i64;
-                let (x, y) = (p[0].0 + (p[1].0 - p[0].0) * t / 1024, p[0].1 + (p[1].1 - p[0].1) * t / 1024);
-                (
-                    (x + next(65) as i64 - 32).clamp(0, (SIDE as i64) * snap - 1),
-                    (y + next(65) as i64 - 32).clamp(0, (SIDE as i64) * snap - 1),
-                )
-            } else {
-                (ox + next(scale) as i64, oy + next(scale) as i64)
-            };
-            let cross = (p[1].0 - p[0].0) * (p[2].1 - p[0].1) - (p[1].1 - p[0].1) * (p[2].0 - p[0].0);
-            if cross == 0 {
-                continue;
-            }
-            let fx = |v: (i64, i64)| (ScreenFx(v.0 as i32), ScreenFx(v.1 as i32));
-            let Some(edges) = (0..3)
-                .map(|i| EdgeCode::new(fx(p[i]), fx(p[(i + 1) % 3]), cross > 0, root_side))
-                .collect::<Option<Vec<_>>>()
-            else {
+            let Some((edges, bbox, p)) = random_triangle(k, root_side, &mut next) else {
                 continue;
             };
-            // The box as the VP forms it: a pixel wider each way, inside the screen.
-            let lo = |v: i64| ((v.div_euclid(snap) - 1).max(0) as u32).min(SIDE);
-            let hi = |v: i64| ((v + snap - 1).div_euclid(snap) + 1).clamp(0, i64::from(SIDE)) as u32;
-            let (xs, ys) = (p.map(|v| v.0), p.map(|v| v.1));
-            let (x0, x1) = (*xs.iter().min().unwrap(), *xs.iter().max().unwrap());
-            let (y0, y1) = (*ys.iter().min().unwrap(), *ys.iter().max().unwrap());
-            let bbox = [lo(x0), hi(x1), lo(y0), hi(y1)];
             let poly = GqPolygon { edges: &edges, opaque: false, bbox };
-            gq.clear();
-            let mut got = Vec::new();
             let mut counters = Counters::new(gq.root_level);
+            // The three instantiations: counting off, on, and the filling descent
+            // (its fragments of cells wholly inside given one cell at a time).
+            let mut got = Vec::new();
+            gq.clear();
             gq.descend::<false>(&poly, &mut counters, &mut |f: Fragment| got.push((f.px, f.py, f.active.to_vec())));
+            let mut counted = Vec::new();
+            gq.clear();
+            gq.descend::<true>(&poly, &mut counters, &mut |f: Fragment| counted.push((f.px, f.py, f.active.to_vec())));
+            let mut filled = Vec::new();
+            gq.clear();
+            gq.descend_filling(&poly, &mut counters, &mut |f: Fragment| {
+                if f.cells == ONE_CELL {
+                    filled.push((f.px, f.py, f.active.to_vec()));
+                } else {
+                    for c in (0..4).filter(|c| f.cells >> c & 1 == 1) {
+                        filled.push((f.px + 4 * (c & 1), f.py + 4 * (c >> 1), Vec::new()));
+                    }
+                }
+            });
             let start = gq.bounding_cell(bbox);
             let side = i64::from(gq.side(start.level));
             let active = (0..3)
@@ -1192,9 +1246,65 @@ mod tests {
             let mut want = Vec::new();
             plain_descent(gq.root_level, start, active, &mut want);
             assert_eq!(got, want, "triangle {p:?}");
+            assert_eq!(counted, want, "counting, triangle {p:?}");
+            assert_eq!(filled, want, "filling, triangle {p:?}");
             checked += 1;
         }
         assert!(checked > 2500);
+    }
+
+    /// With every level's mask in use and opaque triangles drawn one over another
+    /// (the marks of each feeding the next), the descent with counting off, with
+    /// counting on, and the filling descent reach the same cells with the same
+    /// active edges and leave the same marks; the counters of the counting descent
+    /// are those of the machine's every step (tested by the golden statistics).
+    #[test]
+    fn descents_agree_under_masks() {
+        const SIDE: u32 = 256;
+        let new = || {
+            let mut gq = CellProcessors::new(SIDE, SIDE, MaskLevels::ALL);
+            gq.clear();
+            gq
+        };
+        let (mut off, mut on, mut filling) = (new(), new(), new());
+        let root_side = off.side(0);
+        let mut state = 0x9E37_79B9_7F4A_7C15_u64;
+        let mut next = move |n: u64| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state % n
+        };
+        let mut counters = Counters::new(off.root_level);
+        let mut reached = 0;
+        for k in 0..3000 {
+            let Some((edges, bbox, p)) = random_triangle(k, root_side, &mut next) else {
+                continue;
+            };
+            let poly = GqPolygon { edges: &edges, opaque: true, bbox };
+            let mut want = Vec::new();
+            off.descend::<false>(&poly, &mut counters, &mut |f: Fragment| want.push((f.px, f.py, f.active.to_vec())));
+            let mut counted = Vec::new();
+            on.descend::<true>(&poly, &mut counters, &mut |f: Fragment| counted.push((f.px, f.py, f.active.to_vec())));
+            let mut filled = Vec::new();
+            filling.descend_filling(&poly, &mut counters, &mut |f: Fragment| {
+                if f.cells == ONE_CELL {
+                    filled.push((f.px, f.py, f.active.to_vec()));
+                } else {
+                    for c in (0..4).filter(|c| f.cells >> c & 1 == 1) {
+                        filled.push((f.px + 4 * (c & 1), f.py + 4 * (c >> 1), Vec::new()));
+                    }
+                }
+            });
+            assert_eq!(counted, want, "counting, triangle {k} {p:?}");
+            assert_eq!(filled, want, "filling, triangle {k} {p:?}");
+            for level in 1..=off.root_level as usize {
+                assert_eq!(on.memories[level].bits, off.memories[level].bits, "level {level}, triangle {k}");
+                assert_eq!(filling.memories[level].bits, off.memories[level].bits, "level {level}, triangle {k}");
+            }
+            reached += want.len();
+        }
+        assert!(reached > 10_000, "{reached}");
     }
 
     proptest::proptest! {
