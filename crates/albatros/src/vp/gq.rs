@@ -700,6 +700,27 @@ impl CellProcessors {
         counters: &mut Counters,
         spp: &mut impl FnMut(Fragment),
     ) {
+        self.split_step::<STATS, FILL, false>(cell, z, list, len, half, poly, counters, spp);
+    }
+
+    /// [`Self::split`]'s body; with `LAST` for a cell of level L - 1 only (its
+    /// children go to the SPPs). A cell of level L - 2 splits its children of level
+    /// L - 1 by the `LAST` copy inlined, not by a call: most splits are of level
+    /// L - 1 cells (terrain's and many's small polygons start at L - 2 or L - 1), and
+    /// a call of the recursive split costs its saved registers and arguments.
+    #[expect(clippy::too_many_arguments, reason = "the descent's state, passed in registers")]
+    #[inline(always)]
+    fn split_step<const STATS: bool, const FILL: bool, const LAST: bool>(
+        &mut self,
+        cell: Cell,
+        z: usize,
+        list: usize,
+        len: usize,
+        half: i64,
+        poly: &GqPolygon,
+        counters: &mut Counters,
+        spp: &mut impl FnMut(Fragment),
+    ) {
         let k = cell.level as usize;
         let child_level = cell.level + 1;
 
@@ -779,7 +800,7 @@ impl CellProcessors {
                     self.inside[child_level as usize].push(4 * z + c as usize);
                     self.queued |= 1 << child_level;
                 }
-                if child_level == self.root_level {
+                if LAST || child_level == self.root_level {
                     // In the descent's order, cell by cell (this cell of the parent).
                     spp(Fragment { px: cell.x * 8, py: cell.y * 8, active: &[], cells: 1 << c });
                 } else {
@@ -788,13 +809,24 @@ impl CellProcessors {
                 continue;
             }
             let (start, end) = (c as usize * stride, ends[c as usize]);
-            if child_level == self.root_level {
+            if LAST || child_level == self.root_level {
                 spp(Fragment {
                     px: child_cell.x * 4,
                     py: child_cell.y * 4,
                     active: &self.lists[block + start..block + end],
                     cells: ONE_CELL,
                 });
+            } else if child_level + 1 == self.root_level {
+                self.split_step::<STATS, FILL, true>(
+                    child_cell,
+                    4 * z + c as usize,
+                    block + start,
+                    end - start,
+                    half >> 1,
+                    poly,
+                    counters,
+                    spp,
+                );
             } else {
                 self.split::<STATS, FILL>(
                     child_cell,
