@@ -471,6 +471,7 @@ fn bench(args: BenchArgs) -> Result<()> {
         let gp_cfg = GpConfig { threads: args.threads, ..GpConfig::default() };
         // The GP's memory and the frame list are kept from frame to frame.
         let (mut gp_memory, mut frame) = (GpMemory::default(), FrameList::default());
+        let mut stretches: Vec<FrameList> = Vec::new();
         // The displayed image, kept like a display's frame store.
         let mut shown = Image { width: 0, height: 0, pixels: Vec::new() };
         for f in 0..args.warmup + args.frames {
@@ -478,9 +479,18 @@ fn bench(args: BenchArgs) -> Result<()> {
             if args.threads == 1 {
                 gp::frame_into(&db, &db.scene.eye, screen, &gp_cfg, &mut counters, &mut gp_memory, &mut frame);
             } else {
-                // The several GPs on the matrix's threads.
+                // The several GPs on the matrix's threads, their stretches left
+                // unjoined for the matrix to walk in order.
                 matrix.install(|| {
-                    gp::frame_into(&db, &db.scene.eye, screen, &gp_cfg, &mut counters, &mut gp_memory, &mut frame)
+                    gp::frame_stretches_into(
+                        &db,
+                        &db.scene.eye,
+                        screen,
+                        &gp_cfg,
+                        &mut counters,
+                        &mut gp_memory,
+                        &mut stretches,
+                    )
                 });
             }
             let t1 = std::time::Instant::now();
@@ -496,7 +506,7 @@ fn bench(args: BenchArgs) -> Result<()> {
                 vp.render_frame(&frame);
                 None
             } else {
-                matrix.render_frame(&frame);
+                matrix.render_stretches(&stretches);
                 Some(())
             };
             let t3 = std::time::Instant::now();

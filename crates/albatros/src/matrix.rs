@@ -236,6 +236,13 @@ impl Matrix {
 
     /// Renders a frame list on every VP (their video memories hold the result).
     pub fn render_frame(&mut self, frame: &FrameList) {
+        self.render_stretches(std::slice::from_ref(frame));
+    }
+
+    /// [`Self::render_frame`] of a frame given as stretches, the several GPs' lists
+    /// left unjoined ([`crate::gp::frame_stretches_into`]): every VP walks them in
+    /// order ([`VideoProcessor::render_stretches`]); the same image as their join.
+    pub fn render_stretches(&mut self, stretches: &[FrameList]) {
         if let Some(strips) = self.next_strips.take() {
             for (vp, (x0, x1)) in self.vps.iter_mut().zip(strips) {
                 let share = Share::strip(self.tile, x0, x1);
@@ -249,14 +256,14 @@ impl Matrix {
         self.pool.install(|| {
             vps.par_iter_mut().zip(times.par_iter_mut()).for_each(|(vp, time)| {
                 let start = timed.then(std::time::Instant::now);
-                vp.render_frame(frame);
+                vp.render_stretches(stretches);
                 if let Some(start) = start {
                     *time = start.elapsed().as_secs_f64();
                 }
             })
         });
         if self.striped {
-            self.next_strips = Some(self.balance(frame.width));
+            self.next_strips = Some(self.balance(stretches[0].width));
         }
     }
 
@@ -333,7 +340,8 @@ impl Matrix {
         self.pool.install(f)
     }
 
-    /// Renders `frame` and reads it out into `image` while `beside` runs on the same
+    /// Renders `frame` (as stretches, [`Self::render_stretches`]) and reads it out
+    /// into `image` while `beside` runs on the same
     /// threads, and returns what `beside` returns: P1's double-buffered frame
     /// memory, the GP setting up the next frame in one half while the VPs work from
     /// the other (see [`crate::pipeline`]). The VPs render first, on every thread
@@ -344,7 +352,7 @@ impl Matrix {
     /// The image is the one [`Self::render_frame`] and [`Self::read_out_into`] give.
     pub fn render_beside<R: Send>(
         &mut self,
-        frame: &FrameList,
+        frame: &[FrameList],
         image: &mut Image,
         beside: impl FnOnce() -> R + Send,
     ) -> R {
@@ -352,7 +360,7 @@ impl Matrix {
         // Inside the pool, the nested `install`s of `render_frame` and
         // `read_out_into` run in place on the current worker.
         pool.install(|| {
-            self.render_frame(frame);
+            self.render_stretches(frame);
             rayon::join(beside, || self.read_out_into(image)).0
         })
     }
@@ -429,6 +437,59 @@ mod tests {
         // No cost at all: every strip but the last empty is still a split of the
         // screen.
         assert_eq!(even_strips(&[0.0; 10], 2, 16, 40), vec![(0, 0), (0, 40)]);
+    }
+
+    /// The several GPs' stretches walked in order ([`Matrix::render_stretches`],
+    /// [`VideoProcessor::render_stretches`]) give the image of their join, and with
+    /// counting on the same counters: scenes with textures, light points, a moving
+    /// model, faces clipped by the window and the near plane (eyes moved and turned).
+    #[test]
+    fn stretches_render_as_their_join() {
+        use crate::db::{builtin, Screen};
+        use crate::gp::{self, Database, GpConfig, GpCounters, GpMemory};
+        use crate::vp::texture::TextureMaps;
+        let screen = Screen { width: 256, height: 160 };
+        let mut several = false;
+        for name in ["default", "city", "terrain"] {
+            let db = Database::new(builtin::scene(name).expect("built-in"));
+            let maps = std::sync::Arc::new(TextureMaps::from_scene(&db.scene, std::path::Path::new("")).expect("maps"));
+            let (mut memory, mut stretches, mut c) = (GpMemory::default(), Vec::new(), GpCounters::default());
+            let mut eye = db.scene.eye;
+            for k in 0..3 {
+                if k > 0 {
+                    eye.position += glam::Vec3::new(37.0, -23.0, 4.0);
+                    eye.heading += 70.0;
+                    eye.pitch -= 9.0;
+                }
+                let config = GpConfig { threads: 2, ..GpConfig::default() };
+                gp::frame_stretches_into(&db, &eye, screen, &config, &mut c, &mut memory, &mut stretches);
+                let joined = gp::frame(&db, &eye, screen, &GpConfig::default(), &mut c);
+                several |= stretches.len() > 1;
+                let image = |stretched: bool| {
+                    let mut m =
+                        Matrix::for_threads(screen.width, screen.height, VpConfig::default(), 2).expect("matrix");
+                    m.set_textures(maps.clone());
+                    match stretched {
+                        true => m.render_stretches(&stretches),
+                        false => m.render_frame(&joined),
+                    }
+                    m.read_out().pixels
+                };
+                assert!(image(true) == image(false), "{name}, eye {k}: the matrix's image");
+                let config = VpConfig { stats: true, ..VpConfig::default() };
+                let one_vp = |stretched: bool| {
+                    let mut vp = VideoProcessor::new(screen.width, screen.height, config);
+                    vp.set_textures(maps.clone());
+                    match stretched {
+                        true => vp.render_stretches(&stretches),
+                        false => vp.render_frame(&joined),
+                    }
+                    (vp.vb.read_out(&config.readout).pixels, vp.counters.clone())
+                };
+                assert!(one_vp(true) == one_vp(false), "{name}, eye {k}: one VP's image and counters");
+            }
+        }
+        assert!(several, "never more than one stretch: the test tests nothing");
     }
 
     proptest! {

@@ -26,10 +26,11 @@ pub struct Pipeline<'a> {
     gp_memory: GpMemory,
     gp_counters: GpCounters,
     matrix: Matrix,
-    /// The half being read by the VPs (frame `n`).
-    shown: FrameList,
+    /// The half being read by the VPs (frame `n`), as the several GPs' stretches
+    /// ([`gp::frame_stretches_into`]: the VPs walk them in order, no join).
+    shown: Vec<FrameList>,
     /// The half being filled by the GP (frame `n + 1`).
-    next: FrameList,
+    next: Vec<FrameList>,
     /// Whether `shown` holds a frame (not before the first step).
     primed: bool,
 }
@@ -46,8 +47,8 @@ impl<'a> Pipeline<'a> {
             gp_memory: GpMemory::default(),
             gp_counters: GpCounters::default(),
             matrix,
-            shown: FrameList::default(),
-            next: FrameList::default(),
+            shown: Vec::new(),
+            next: Vec::new(),
             primed: false,
         }
     }
@@ -58,7 +59,7 @@ impl<'a> Pipeline<'a> {
     /// was none to render yet).
     pub fn step(&mut self, eye: &Eye, image: &mut Image) -> bool {
         let Self { db, screen, gp_config, gp_memory, gp_counters, matrix, shown, next, primed } = self;
-        let set_up = || gp::frame_into(db, eye, *screen, gp_config, gp_counters, gp_memory, next);
+        let set_up = || gp::frame_stretches_into(db, eye, *screen, gp_config, gp_counters, gp_memory, next);
         let rendered = *primed;
         if rendered {
             matrix.render_beside(shown, image, set_up);

@@ -511,13 +511,36 @@ pub fn frame_into(
     memory: &mut GpMemory,
     out: &mut FrameList,
 ) {
-    frame_with(db, eye, screen, config, counters, memory, out, true);
+    let mut stretches = std::mem::take(&mut memory.stretches);
+    frame_with(db, eye, screen, config, counters, memory, &mut stretches, Some(out), true);
+    memory.stretches = stretches;
 }
 
-/// [`frame_into`], with or without its shortcuts (`shortcuts`: passing over the
-/// static tree's subtrees outside the view volume, and over the guests' places in
-/// a frame with no guests; triangles set up by a path of their own; the tests
-/// compare the two).
+/// [`frame_into`] without the join: the frame as its stretches, frame lists (each
+/// with the frame's header, their polygon, vertex and texture indices their own)
+/// whose polygons in order, one list after another, are [`frame_into`]'s list
+/// (with one GP, or a scene of one task, a single list). The VPs walk them in order
+/// ([`crate::matrix::Matrix::render_stretches`]), so the copy of every polygon,
+/// vertex and edge code into one list is left out: on `many` (a million
+/// triangles, ~292 bytes each) it was ~290 MB a frame, ~12 % of the GP's time on
+/// two threads. `stretches` keeps its lists' allocations from frame to frame.
+pub fn frame_stretches_into(
+    db: &Database,
+    eye: &Eye,
+    screen: Screen,
+    config: &GpConfig,
+    counters: &mut GpCounters,
+    memory: &mut GpMemory,
+    stretches: &mut Vec<FrameList>,
+) {
+    frame_with(db, eye, screen, config, counters, memory, stretches, None, true);
+}
+
+/// [`frame_into`] (the stretches joined into `out`) or, with `out` `None`,
+/// [`frame_stretches_into`] (the frame left as `stretches`), with or without its
+/// shortcuts (`shortcuts`: passing over the static tree's subtrees outside the view
+/// volume, and over the guests' places in a frame with no guests; triangles set up
+/// by a path of their own; the tests compare the two).
 #[allow(clippy::too_many_arguments)]
 fn frame_with(
     db: &Database,
@@ -526,7 +549,8 @@ fn frame_with(
     config: &GpConfig,
     counters: &mut GpCounters,
     memory: &mut GpMemory,
-    out: &mut FrameList,
+    stretches: &mut Vec<FrameList>,
+    out: Option<&mut FrameList>,
     shortcuts: bool,
 ) {
     let view = View::new(eye, screen);
@@ -595,7 +619,6 @@ fn frame_with(
         b.counters
     };
     let mut c = GpCounters::default();
-    let mut stretches = std::mem::take(&mut memory.stretches);
     let set_up = |stretches: &mut Vec<FrameList>| -> Vec<GpCounters> {
         stretches.resize_with(tasks.len(), FrameList::default);
         stretches
@@ -612,32 +635,47 @@ fn frame_with(
     let in_pool = rayon::current_thread_index().is_some() && rayon::current_num_threads() == config.threads;
     let parts = match (parallel, in_pool) {
         (false, _) => None,
-        (true, true) => Some(set_up(&mut stretches)),
-        (true, false) => memory.pool(config.threads).map(|pool| pool.install(|| set_up(&mut stretches))),
+        (true, true) => Some(set_up(stretches)),
+        (true, false) => memory.pool(config.threads).map(|pool| pool.install(|| set_up(stretches))),
     };
-    match parts {
+    let polygons_out = match parts {
         Some(parts) => {
-            // The header empties the lists; their elements are kept here instead,
-            // so that the join overwrites them rather than writing them afresh.
-            let kept = (
-                std::mem::take(&mut out.polygons),
-                std::mem::take(&mut out.vertices),
-                std::mem::take(&mut out.edges),
-                std::mem::take(&mut out.textures),
-            );
-            Setup::new(&db.scene, &view).header(out);
-            (out.polygons, out.vertices, out.edges, out.textures) = kept;
-            // On the threads that set the stretches up.
-            match (in_pool, memory.pool.as_ref()) {
-                (true, _) => join_stretches(&stretches, out, true),
-                (false, Some((_, pool))) => pool.install(|| join_stretches(&stretches, out, true)),
-                (false, None) => join_stretches(&stretches, out, false),
+            if let Some(out) = out {
+                // The header empties the lists; their elements are kept here
+                // instead, so that the join overwrites them rather than writing
+                // them afresh.
+                let kept = (
+                    std::mem::take(&mut out.polygons),
+                    std::mem::take(&mut out.vertices),
+                    std::mem::take(&mut out.edges),
+                    std::mem::take(&mut out.textures),
+                );
+                Setup::new(&db.scene, &view).header(out);
+                (out.polygons, out.vertices, out.edges, out.textures) = kept;
+                // On the threads that set the stretches up.
+                match (in_pool, memory.pool.as_ref()) {
+                    (true, _) => join_stretches(stretches, out, true),
+                    (false, Some((_, pool))) => pool.install(|| join_stretches(stretches, out, true)),
+                    (false, None) => join_stretches(stretches, out, false),
+                }
             }
             for k in &parts {
                 c.add(k);
             }
+            stretches.iter().map(|l| l.polygons.len() as u64).sum()
         }
         None => {
+            // With no list to join into, a frame set up by one GP is one stretch.
+            let out = match out {
+                Some(out) => out,
+                None => {
+                    stretches.truncate(1);
+                    if stretches.is_empty() {
+                        stretches.push(FrameList::default());
+                    }
+                    &mut stretches[0]
+                }
+            };
             let setup = Setup::new(&db.scene, &view);
             setup.header(out);
             let mut b = FrameBuilder {
@@ -654,14 +692,14 @@ fn frame_with(
                 db.bsp.traverse_subtree_culled(0, view.position, guests, |n| shared.culls(n), |v| b.visit(v));
             }
             c = b.counters;
+            b.out.polygons.len() as u64
         }
-    }
-    memory.stretches = stretches;
+    };
     memory.pieces = pieces;
     memory.tasks = tasks;
     memory.guest_places = place_bits;
     c.add(&shared.counters);
-    c.polygons_out = out.polygons.len() as u64;
+    c.polygons_out = polygons_out;
     *counters = c;
 }
 
@@ -1096,7 +1134,8 @@ mod tests {
     /// a counter: built-in scenes with and without light points and moving models,
     /// textured and not, of triangles (terrain) and other polygons, eyes turned
     /// every way (much of the tree behind or beside them, faces clipped by the
-    /// window and the near plane), one and two GPs.
+    /// window and the near plane), one and two GPs; and the frame left as stretches
+    /// ([`frame_stretches_into`]) is, stretch after stretch, the same list.
     #[test]
     fn traversal_shortcuts_change_nothing() {
         let mut state = 0x9E37_79B9_7F4A_7C15u64;
@@ -1106,7 +1145,7 @@ mod tests {
             state ^= state << 17;
             lo + (hi - lo) * (state >> 40) as f32 / (1u64 << 24) as f32
         };
-        let mut culled_some = false;
+        let (mut culled_some, mut multiple_stretches) = (false, false);
         // Triangles set up, texture set-ups, faces clipped by the window and by the
         // near plane.
         let mut seen = [0usize; 4];
@@ -1123,15 +1162,52 @@ mod tests {
                     eye.roll = next(-30.0, 30.0);
                     eye.fov = next(20.0, 100.0);
                 }
+                let mut one_gp: Option<(FrameList, GpCounters)> = None;
                 for threads in [1, 2] {
                     let config = GpConfig { threads, ..GpConfig::default() };
                     let run = |shortcuts: bool| {
                         let (mut c, mut out) = (GpCounters::default(), FrameList::default());
-                        frame_with(&db, &eye, screen, &config, &mut c, &mut GpMemory::default(), &mut out, shortcuts);
+                        let mut stretches = Vec::new();
+                        let memory = &mut GpMemory::default();
+                        frame_with(
+                            &db,
+                            &eye,
+                            screen,
+                            &config,
+                            &mut c,
+                            memory,
+                            &mut stretches,
+                            Some(&mut out),
+                            shortcuts,
+                        );
                         (out, c)
                     };
                     let (plain, fast) = (run(false), run(true));
                     assert!(plain == fast, "{name}, eye {eye:?}, {threads} threads");
+                    // The frame as stretches, unjoined: in order, the same polygons
+                    // with the same vertices, edge codes and texture set-ups, and
+                    // the same counters (twice, the second time into kept lists).
+                    let (mut c, mut stretches) = (GpCounters::default(), Vec::new());
+                    let memory = &mut GpMemory::default();
+                    for _ in 0..2 {
+                        frame_stretches_into(&db, &eye, screen, &config, &mut c, memory, &mut stretches);
+                        let mut joined = stretches[0].clone();
+                        joined.clear();
+                        for l in &stretches {
+                            let header = |l: &FrameList| {
+                                (l.width, l.height, l.background, l.fog_color, l.visibility, l.pixel_angle)
+                            };
+                            assert_eq!(header(l), header(&fast.0), "{name}: a stretch's header");
+                            joined.append(l);
+                        }
+                        assert!(joined == fast.0 && c == fast.1, "{name}, eye {eye:?}, {threads} threads: stretches");
+                        multiple_stretches |= stretches.len() > 1;
+                    }
+                    // One GP or two, the same frame.
+                    match &one_gp {
+                        None => one_gp = Some(fast.clone()),
+                        Some(one) => assert!(*one == fast, "{name}, eye {eye:?}: 1 and {threads} GPs"),
+                    }
                     let (list, c) = &fast;
                     let triangles = list.polygons.iter().filter(|p| p.vertices.len() == 3).count();
                     seen[0] += triangles;
@@ -1144,6 +1220,7 @@ mod tests {
             }
         }
         assert!(culled_some, "no subtree was culled: the test tests nothing");
+        assert!(multiple_stretches, "never more than one stretch: the test tests nothing");
         assert!(seen.iter().all(|&k| k > 20), "every kind of face tested: {seen:?}");
     }
 }

@@ -134,11 +134,23 @@ impl VideoProcessor {
     /// Renders a frame list into the video buffer (every pixel of the VP's share is
     /// written afresh; nothing of the previous frame remains).
     pub fn render_frame(&mut self, frame: &FrameList) {
-        assert_eq!((frame.width, frame.height), (self.vb.width, self.vb.height), "frame list for another screen size");
-        if self.config.stats {
-            self.render_inner::<true>(frame)
-        } else {
-            self.render_inner::<false>(frame)
+        self.render_stretches(std::slice::from_ref(frame));
+    }
+
+    /// [`Self::render_frame`] of a frame given as stretches
+    /// ([`crate::gp::frame_stretches_into`]): the lists' polygons in order, one list
+    /// after another, with the first list's header; the same image as their join.
+    pub fn render_stretches(&mut self, stretches: &[FrameList]) {
+        for l in stretches {
+            assert_eq!((l.width, l.height), (self.vb.width, self.vb.height), "frame list for another screen size");
+        }
+        // One list (one GP) takes a copy with no per-fragment check of the stretch
+        // (+1 % of colour + VB instructions on default and terrain with it).
+        match (self.config.stats, stretches.len() > 1) {
+            (true, true) => self.render_inner::<true, true>(stretches),
+            (true, false) => self.render_inner::<true, false>(stretches),
+            (false, true) => self.render_inner::<false, true>(stretches),
+            (false, false) => self.render_inner::<false, false>(stretches),
         }
     }
 
@@ -148,37 +160,49 @@ impl VideoProcessor {
         self.vb.read_out(&self.config.readout)
     }
 
-    fn render_inner<const STATS: bool>(&mut self, frame: &FrameList) {
+    /// `STRETCHES`: whether `stretches` may hold more than one list.
+    fn render_inner<const STATS: bool, const STRETCHES: bool>(&mut self, stretches: &[FrameList]) {
+        let frame = &stretches[0];
         // No clearing of the VB: every pixel of this VP's share gets a first write
         // each frame (the background is the last fragment of every pixel and takes
         // what is left, so each pixel's mask goes from empty to full), and the first
         // write replaces what the pixel held. Pixels outside the share are never
         // read out of this VP.
-        let cc = ColorComputers::new(frame, &self.textures);
+        // The colour computers' registers, loaded again at each stretch (its own
+        // texture set-ups).
+        let mut cc = ColorComputers::new(frame, &self.textures);
         let mut colors = cc::CellColors::default();
         let mut inner = Counters::new(self.gq.root_level);
         let vb = &mut self.vb;
-        // The last polygon seen and its one colour, if it has one
-        // ([`ColorComputers::flat_color`]).
-        let mut flat: Option<(usize, Option<Vec3>)> = None;
+        // The last polygon seen (its stretch and index there) and its one colour,
+        // if it has one ([`ColorComputers::flat_color`]).
+        let mut flat: Option<((usize, usize), Option<Vec3>)> = None;
+        let textures = &*self.textures;
+        let mut stretch = 0;
         Self::run::<STATS>(
             &mut self.gq,
             &mut self.spp,
             &mut self.counters,
             &mut self.column_work,
-            frame,
+            stretches,
             &mut |poly, vis| match poly {
-                Some(p) => {
-                    let poly = &frame.polygons[p];
+                Some((s, p)) => {
+                    // With one list, `s` is 0.
+                    let s = if STRETCHES { s } else { 0 };
+                    if STRETCHES && s != stretch {
+                        stretch = s;
+                        cc = ColorComputers::new(&stretches[s], textures);
+                    }
+                    let poly = &stretches[s].polygons[p];
                     // A polygon of one colour goes to the VB as the background does,
                     // with no work per pixel in the CC. (Not when counting: the counters
                     // count the CC's pixels as the machine colours them.)
                     if !STATS {
                         let color = match flat {
-                            Some((q, color)) if q == p => color,
+                            Some((q, color)) if q == (s, p) => color,
                             _ => {
                                 let color = cc.flat_color(poly);
-                                flat = Some((p, color));
+                                flat = Some(((s, p), color));
                                 color
                             }
                         };
@@ -208,7 +232,7 @@ impl VideoProcessor {
             &mut self.spp,
             &mut self.counters,
             &mut self.column_work,
-            frame,
+            std::slice::from_ref(frame),
             &mut |_, vis| {
                 visible += u64::from(vis.any());
             },
@@ -229,9 +253,9 @@ impl VideoProcessor {
             &mut self.spp,
             &mut counters,
             &mut self.column_work,
-            frame,
+            std::slice::from_ref(frame),
             &mut |poly, vis| {
-                let Some(p) = poly else { return };
+                let Some((_, p)) = poly else { return };
                 for (i, &set) in vis.sets.iter().enumerate() {
                     let (x, y) = (vis.px as usize + (i & 3), vis.py as usize + (i >> 2));
                     for sub in 0..16 {
@@ -278,14 +302,16 @@ impl VideoProcessor {
     }
 
     /// The VP's pipeline over a frame: BP, GQ descent, SPP; every visible fragment
-    /// goes to `sink` with its polygon's index (`None`: the background, last).
+    /// goes to `sink` with its polygon's stretch and index there (`None`: the
+    /// background, last). The frame is `stretches`, their polygons one list after
+    /// another (with one list, the index is the polygon's in the frame list).
     fn run<const STATS: bool>(
         gq: &mut CellProcessors,
         spp: &mut SubpixelProcessors,
         counters: &mut Counters,
         work: &mut [u32],
-        frame: &FrameList,
-        sink: &mut impl FnMut(Option<usize>, &spp::Visible),
+        stretches: &[FrameList],
+        sink: &mut impl FnMut(Option<(usize, usize)>, &spp::Visible),
     ) {
         gq.clear();
         spp.clear();
@@ -293,73 +319,76 @@ impl VideoProcessor {
         let share = spp.share;
         *counters = Counters::new(gq.root_level);
         if STATS {
-            counters.polygons = frame.polygons.len() as u64;
+            counters.polygons = stretches.iter().map(|l| l.polygons.len() as u64).sum();
         }
         // A second counter set for the SPP stage (the GQ holds the first).
         let mut inner = Counters::new(gq.root_level);
         let hierarchical = gq.hierarchical;
         // The last-level cells a polygon covers wholly, in Z order.
         let mut covered_cells: Vec<usize> = Vec::new();
-        for (index, poly) in frame.polygons.iter().enumerate() {
-            let edges = frame.edges_of(poly);
-            let bbox = bbox(frame.vertices_of(poly), frame.width, frame.height);
-            if bbox[0] >= bbox[1] || bbox[2] >= bbox[3] {
-                continue;
-            }
-            if !STATS && share.strip != gq::Share::ALL_COLUMNS {
-                // The GQ never leaves the polygon's starting cell: a polygon whose
-                // starting cell is outside this VP's strip would find every cell
-                // pre-masked (with counting on, it is counted as the machine does).
-                let start = gq.bounding_cell(bbox);
-                let side = gq.side(start.level);
-                if !share.meets_columns(start.x * side, (start.x + 1) * side) {
+        for (s, frame) in stretches.iter().enumerate() {
+            for (i, poly) in frame.polygons.iter().enumerate() {
+                let index = (s, i);
+                let edges = frame.edges_of(poly);
+                let bbox = bbox(frame.vertices_of(poly), frame.width, frame.height);
+                if bbox[0] >= bbox[1] || bbox[2] >= bbox[3] {
                     continue;
                 }
-            }
-            let opaque = poly.transparency == 0;
-            let gp = GqPolygon { edges, opaque, bbox };
-            let mut fragment = |frag: gq::Fragment| {
-                if !STATS && frag.active.is_empty() {
-                    // With counting off, cells no edge crosses (wholly inside, up to
-                    // four siblings at once) need no look-ups, and an opaque
-                    // polygon's are marked covered by the GQ
-                    // ([`CellProcessors::descend_filling`]).
-                    let mut cells = frag.cells;
-                    while cells != 0 {
-                        let c = cells.trailing_zeros();
-                        cells &= cells - 1;
-                        let (px, py) = (frag.px + spp::CELL_SIDE * (c & 1), frag.py + spp::CELL_SIDE * (c >> 1));
-                        let vis = spp.inside(px, py, poly.transparency);
-                        if hierarchical && !opaque && vis.covered {
-                            covered_cells.push(gq::morton(px / spp::CELL_SIDE, py / spp::CELL_SIDE));
-                        }
-                        let column = &mut work[(px / spp::CELL_SIDE) as usize];
-                        *column += work::INSIDE_CELL;
-                        if vis.any() {
-                            *column += work::VISIBLE_CELL;
-                            sink(Some(index), &vis);
-                        }
+                if !STATS && share.strip != gq::Share::ALL_COLUMNS {
+                    // The GQ never leaves the polygon's starting cell: a polygon whose
+                    // starting cell is outside this VP's strip would find every cell
+                    // pre-masked (with counting on, it is counted as the machine does).
+                    let start = gq.bounding_cell(bbox);
+                    let side = gq.side(start.level);
+                    if !share.meets_columns(start.x * side, (start.x + 1) * side) {
+                        continue;
                     }
-                    return;
                 }
-                let vis = spp.process::<STATS>(&frag, edges, poly.transparency, &mut inner);
-                if hierarchical && vis.covered {
-                    covered_cells.push(gq::morton(vis.px / spp::CELL_SIDE, vis.py / spp::CELL_SIDE));
+                let opaque = poly.transparency == 0;
+                let gp = GqPolygon { edges, opaque, bbox };
+                let mut fragment = |frag: gq::Fragment| {
+                    if !STATS && frag.active.is_empty() {
+                        // With counting off, cells no edge crosses (wholly inside, up to
+                        // four siblings at once) need no look-ups, and an opaque
+                        // polygon's are marked covered by the GQ
+                        // ([`CellProcessors::descend_filling`]).
+                        let mut cells = frag.cells;
+                        while cells != 0 {
+                            let c = cells.trailing_zeros();
+                            cells &= cells - 1;
+                            let (px, py) = (frag.px + spp::CELL_SIDE * (c & 1), frag.py + spp::CELL_SIDE * (c >> 1));
+                            let vis = spp.inside(px, py, poly.transparency);
+                            if hierarchical && !opaque && vis.covered {
+                                covered_cells.push(gq::morton(px / spp::CELL_SIDE, py / spp::CELL_SIDE));
+                            }
+                            let column = &mut work[(px / spp::CELL_SIDE) as usize];
+                            *column += work::INSIDE_CELL;
+                            if vis.any() {
+                                *column += work::VISIBLE_CELL;
+                                sink(Some(index), &vis);
+                            }
+                        }
+                        return;
+                    }
+                    let vis = spp.process::<STATS>(&frag, edges, poly.transparency, &mut inner);
+                    if hierarchical && vis.covered {
+                        covered_cells.push(gq::morton(vis.px / spp::CELL_SIDE, vis.py / spp::CELL_SIDE));
+                    }
+                    let column = &mut work[(frag.px / spp::CELL_SIDE) as usize];
+                    *column += work::EDGE_CELL;
+                    if vis.any() {
+                        *column += work::VISIBLE_CELL;
+                        sink(Some(index), &vis);
+                    }
+                };
+                if STATS {
+                    gq.descend::<STATS>(&gp, counters, &mut fragment);
+                } else {
+                    gq.descend_filling(&gp, counters, &mut fragment);
                 }
-                let column = &mut work[(frag.px / spp::CELL_SIDE) as usize];
-                *column += work::EDGE_CELL;
-                if vis.any() {
-                    *column += work::VISIBLE_CELL;
-                    sink(Some(index), &vis);
-                }
-            };
-            if STATS {
-                gq.descend::<STATS>(&gp, counters, &mut fragment);
-            } else {
-                gq.descend_filling(&gp, counters, &mut fragment);
+                // Cells this polygon finished covering are marked for the next ones.
+                gq.mark_covered_cells(&mut covered_cells);
             }
-            // Cells this polygon finished covering are marked for the next ones.
-            gq.mark_covered_cells(&mut covered_cells);
         }
         // The background: the last fragment of every pixel, over the cells of this
         // VP's share (the others are pre-masked whole: no subpixel of theirs is open).
