@@ -8,8 +8,9 @@
 //! textured polygons in a third, so that building a frame allocates per frame, never
 //! per polygon.
 //!
-//! Bytes per polygon decide here: `many` (a million small triangles) writes, copies
-//! (the several GPs' join) and reads its frame list every frame. A [`FramePolygon`]
+//! Bytes per polygon decide here: `many` (a million small triangles) writes and
+//! reads its frame list every frame (and `dump` or `stats`, which join the several
+//! GPs' stretches into one list, copy it). A [`FramePolygon`]
 //! is 64 bytes, one cache line (it was 128: the texture set-up inline, 60 bytes
 //! even when untextured, and a second range equal to the first); a triangle's whole
 //! share of the list is 64 + 3 vertices (36) + 3 edge codes (192) bytes.

@@ -442,7 +442,8 @@ struct FrameBuilder<'a> {
 }
 
 /// Faces per task when the GP runs on several threads (small enough to balance the
-/// load, large enough that stitching the frame lists costs nothing). Each task is a
+/// load, large enough that the VPs' switch from one task's list to the next costs
+/// nothing). Each task is a
 /// stretch of the priority order, whole subtrees of the BSP traversed by the GP
 /// that sets them up, so that the traversal too runs in parallel: on `terrain` it
 /// was a tenth of the GP's work, done on one thread before the others started.
