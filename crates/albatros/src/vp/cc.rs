@@ -19,12 +19,16 @@
 //!
 //! Three copies of the same arithmetic, chosen at run time (the build itself targets
 //! x86-64-v2): the portable one, arrays of 4 lanes that the compiler vectorises; with
-//! AVX2, explicit 256-bit code, 8 pixels (half a cell) per group; with AVX-512F,
-//! 512-bit code, the whole cell as one group of 16 (on Zen 4 the cell's operations
-//! are one chain of dependent steps rather than two: shade's share of a default
-//! frame's time 14 % lower than AVX2's). In the explicit copies the reads of the
-//! TAC's ROMs and of the texture map are gathers, the map's four texels of a
-//! bilinear look-up one 4-byte read ([`super::texture`]'s pair layout). Rust neither
+//! AVX2, explicit 256-bit code, 8 pixels (half a cell) per register, a cell with
+//! visible pixels in both halves done as the two halves side by side, step by step
+//! (two chains of dependent steps that overlap: on Zen 3 the colour computers 20 %
+//! faster on default than one half after the other); with AVX-512F, 512-bit code,
+//! the whole cell as one group of 16 (on Zen 4 the cell's operations are one chain
+//! of dependent steps rather than two: shade's share of a default frame's time 14 %
+//! lower than AVX2's one half after the other). The map's four texels of a bilinear
+//! look-up are one 4-byte read ([`super::texture`]'s pair layout), a gather; the
+//! TAC's ROM entries `k` and `k + 1` one 8-byte read, by gathers in the AVX-512 copy
+//! and by scalar loads in the AVX2 copy (Zen 3's gathers cost more). Rust neither
 //! fuses nor reorders float operations, and each copy does the same operations in
 //! the same order, so the bits are the same; the tests compare every copy the
 //! processor can run with the plain per-pixel definition.
@@ -193,51 +197,41 @@ impl<'a> ColorComputers<'a> {
         self.shade_scalar(poly, vis, out)
     }
 
-    /// [`Self::shade`] in explicit AVX2, in groups of [`AVX2_LANES`] pixels (two
-    /// rows of the cell, or eight packed pixels) in 256-bit registers
-    /// ([`CellShader::group_avx2`]), the ROMs' and the texture map's reads as
-    /// gathers: the same operations on the same values as [`Self::shade_lanes`]
-    /// (Rust neither fuses nor reorders float operations), so the same bits.
+    /// [`Self::shade`] in explicit AVX2: the cell's halves (two rows, [`AVX2_LANES`]
+    /// pixels, one 256-bit register) with a visible pixel; when both have one,
+    /// the two side by side ([`CellShader::cell_avx2`]), else the one alone
+    /// ([`CellShader::group_avx2`]). The same operations on the same values as
+    /// [`Self::shade_lanes`] (Rust neither fuses nor reorders float operations),
+    /// so the same bits.
+    ///
+    /// No packing of a cell's visible pixels into fewer groups (as the portable
+    /// copy does): on Zen 3 the two halves side by side cost hardly more than one
+    /// (their chains of dependent steps overlap), and a packed group costs its
+    /// lanes' scattered stores: terrain's colour computers 3 % faster without it,
+    /// default's the same.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn shade_avx2(&self, poly: &FramePolygon, vis: &Visible, out: &mut CellColors) {
         const N: usize = AVX2_LANES;
         let visible = visible_avx2(&vis.sets);
+        if visible == 0 {
+            return;
+        }
         let cell = CellShader::new(self, poly, vis);
-        let count = visible.count_ones() as usize;
-        // The groups' pixels (`4 y + x` per lane) and how many of their lanes are
-        // wanted: the cell's halves with a visible pixel, or its visible pixels
-        // packed when they take fewer groups (a last group's spare lanes repeat
-        // its last pixel). One call of the group below, so that it is inlined
-        // with what the groups share hoisted.
-        let mut groups = [[0i32; N]; 2];
-        let mut wanted = [0usize; 2];
-        let mut group_count = 0;
-        let halves = [visible & 0xFF, visible >> N];
-        let live_halves = halves.iter().filter(|&&h| h != 0).count();
-        if live_halves <= count.div_ceil(N) {
-            for (b, &half) in halves.iter().enumerate() {
-                if half != 0 {
-                    groups[group_count] = std::array::from_fn(|l| (N * b + l) as i32);
-                    wanted[group_count] = N;
-                    group_count += 1;
+        if visible & 0xFF != 0 && visible >> N != 0 {
+            for (half, c) in cell.cell_avx2().iter().enumerate() {
+                for (out, c) in out.rgb.iter_mut().zip(c) {
+                    store_lanes(*c, (&mut out[N * half..N * (half + 1)]).try_into().expect("8 lanes"));
                 }
             }
         } else {
-            let mut pixels = [0i32; 16];
-            let mut rest = visible;
-            for p in &mut pixels[..count] {
-                *p = rest.trailing_zeros() as i32;
-                rest &= rest - 1;
-            }
-            for (g, chunk) in pixels[..count].chunks(N).enumerate() {
-                let live = chunk.len();
-                groups[g] = std::array::from_fn(|l| chunk[l.min(live - 1)]);
-                wanted[g] = live;
-                group_count = g + 1;
+            let half = usize::from(visible & 0xFF == 0);
+            let first = (N * half) as i32;
+            let pixel = _mm256_add_epi32(_mm256_set1_epi32(first), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+            for (out, c) in out.rgb.iter_mut().zip(cell.group_avx2(pixel)) {
+                store_lanes(c, (&mut out[N * half..N * (half + 1)]).try_into().expect("8 lanes"));
             }
         }
-        cell.groups_avx2(&groups[..group_count], &wanted, out);
     }
 
     /// [`Self::shade`] in explicit AVX-512: the whole cell as one group of 16
@@ -328,6 +322,17 @@ impl<'a> ColorComputers<'a> {
 #[cfg(target_arch = "x86_64")]
 const AVX2_LANES: usize = 8;
 
+/// [`CellShader::front_avx2`]'s values of eight pixels.
+#[cfg(target_arch = "x86_64")]
+struct Front {
+    /// `Z`.
+    z: __m256,
+    /// Intensity.
+    intensity: __m256,
+    /// With a texture: `u`, `v`, the footprint.
+    texture: Option<(__m256, __m256, __m256)>,
+}
+
 /// The colour computers' values for one cell of one polygon: the functions at the
 /// cell's point Q and what the groups of its pixels share.
 struct CellShader<'a> {
@@ -371,36 +376,6 @@ impl<'a> CellShader<'a> {
             inv_visibility: cc.inv_visibility,
             footprint_scale: cc.footprint_scale,
             rom: TacRom::get(),
-        }
-    }
-
-    /// The colours of the pixels of `groups` (`4 y + x` per lane; the first
-    /// `wanted[g]` lanes of group `g` are written) into `out`: [`Self::group_avx2`]
-    /// for each, in one loop so that what the groups share is computed once.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn groups_avx2(&self, groups: &[[i32; AVX2_LANES]], wanted: &[usize; 2], out: &mut CellColors) {
-        for (lanes, &wanted) in groups.iter().zip(wanted) {
-            let pixel =
-                _mm256_setr_epi32(lanes[0], lanes[1], lanes[2], lanes[3], lanes[4], lanes[5], lanes[6], lanes[7]);
-            let c = self.group_avx2(pixel);
-            if wanted == AVX2_LANES && lanes[0] % AVX2_LANES as i32 == 0 && lanes[AVX2_LANES - 1] == lanes[0] + 7 {
-                // Half a cell: its eight colours in place, whole.
-                let half = (lanes[0] as usize / AVX2_LANES) & 1;
-                for (out, c) in out.rgb.iter_mut().zip(c) {
-                    store_lanes(c, (&mut out[AVX2_LANES * half..AVX2_LANES * (half + 1)]).try_into().expect("8 lanes"));
-                }
-            } else {
-                let mut rgb = [[0.0f32; AVX2_LANES]; 3];
-                for (rgb, c) in rgb.iter_mut().zip(c) {
-                    store_lanes(c, rgb);
-                }
-                for (l, &i) in lanes.iter().enumerate().take(wanted) {
-                    for (out, rgb) in out.rgb.iter_mut().zip(&rgb) {
-                        out[i as usize & 15] = rgb[l];
-                    }
-                }
-            }
         }
     }
 
@@ -465,6 +440,39 @@ impl<'a> CellShader<'a> {
     #[target_feature(enable = "avx2")]
     #[inline]
     fn group_avx2(&self, pixel: __m256i) -> [__m256; 3] {
+        let front = self.front_avx2(pixel);
+        let m = match (self.texture, front.texture) {
+            (Some((_, map)), Some((u, v, footprint))) => Some(map.sample_avx2(u, v, footprint)),
+            _ => None,
+        };
+        self.back_avx2(&front, m)
+    }
+
+    /// [`Self::group_avx2`] of the cell's two halves (pixels `0..8` and `8..16`),
+    /// each step done for both before the next ([`TextureMap::sample2_avx2`]):
+    /// two chains of dependent operations side by side.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn cell_avx2(&self) -> [[__m256; 3]; 2] {
+        let halves = [_mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), _mm256_setr_epi32(8, 9, 10, 11, 12, 13, 14, 15)];
+        let front = halves.map(|h| self.front_avx2(h));
+        let m = match (self.texture, front[0].texture, front[1].texture) {
+            (Some((_, map)), Some((u0, v0, f0)), Some((u1, v1, f1))) => {
+                let m = map.sample2_avx2([u0, u1], [v0, v1], [f0, f1]);
+                [Some(m[0]), Some(m[1])]
+            }
+            _ => [None, None],
+        };
+        [self.back_avx2(&front[0], m[0]), self.back_avx2(&front[1], m[1])]
+    }
+
+    /// The first steps of [`Self::group_avx2`]: `Z`, intensity, and with a
+    /// texture `u`, `v` and the footprint.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn front_avx2(&self, pixel: __m256i) -> Front {
         let poly = self.poly;
         // `dx = x - 1`, `dy = y - 1`: Q is pixel (1, 1).
         let one_i = _mm256_set1_epi32(1);
@@ -477,33 +485,46 @@ impl<'a> CellShader<'a> {
         let z = _mm256_div_ps(one, _mm256_max_ps(inv_z, _mm256_set1_ps(f32::MIN_POSITIVE)));
         let intensity = _mm256_mul_ps(step_avx2(self.i_q, &poly.intensity, dx, dy), z);
         let intensity = _mm256_max_ps(intensity, _mm256_setzero_ps());
-        let c0: [__m256; 3] = match self.texture {
-            Some((t, map)) => {
-                let u = _mm256_mul_ps(step_avx2(self.u_q, &t.u, dx, dy), z);
-                let v = _mm256_mul_ps(step_avx2(self.v_q, &t.v, dx, dy), z);
-                let footprint = _mm256_mul_ps(
-                    _mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(self.footprint_scale), z), z),
-                    _mm256_set1_ps(t.par),
-                );
-                let m = map.sample_avx2(u, v, footprint);
+        let texture = self.texture.map(|(t, _)| {
+            let u = _mm256_mul_ps(step_avx2(self.u_q, &t.u, dx, dy), z);
+            let v = _mm256_mul_ps(step_avx2(self.v_q, &t.v, dx, dy), z);
+            let footprint = _mm256_mul_ps(
+                _mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(self.footprint_scale), z), z),
+                _mm256_set1_ps(t.par),
+            );
+            (u, v, footprint)
+        });
+        Front { z, intensity, texture }
+    }
+
+    /// The last steps of [`Self::group_avx2`]: `C0` from the texture's value `m`
+    /// (or the flat colour), brightness and fog.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn back_avx2(&self, front: &Front, m: Option<__m256>) -> [__m256; 3] {
+        let one = _mm256_set1_ps(1.0);
+        let c0: [__m256; 3] = match (self.texture, m) {
+            (Some((t, _)), Some(m)) => {
                 let not_m = _mm256_sub_ps(one, m);
                 let (c1, c2) = (t.color1.to_array(), t.color2.to_array());
                 [0, 1, 2].map(|c| {
                     _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(c1[c]), m), _mm256_mul_ps(_mm256_set1_ps(c2[c]), not_m))
                 })
             }
-            None => {
-                let c = poly.color.to_array();
+            _ => {
+                let c = self.poly.color.to_array();
                 [_mm256_set1_ps(c[0]), _mm256_set1_ps(c[1]), _mm256_set1_ps(c[2])]
             }
         };
         let f = if self.inv_visibility != 0.0 {
-            self.rom.fog_avx2(_mm256_mul_ps(z, _mm256_set1_ps(self.inv_visibility)))
+            self.rom.fog_avx2(_mm256_mul_ps(front.z, _mm256_set1_ps(self.inv_visibility)))
         } else {
             one
         };
         let not_f = _mm256_sub_ps(one, f);
         let fog = self.fog;
+        let intensity = front.intensity;
         [0, 1, 2].map(|c| {
             _mm256_add_ps(
                 _mm256_mul_ps(_mm256_mul_ps(c0[c], intensity), f),

@@ -310,12 +310,51 @@ impl TextureMap {
 #[cfg(target_arch = "x86_64")]
 impl TextureMap {
     /// [`Self::sample_lanes`] of eight pixels in AVX2 registers, bit for bit: the
-    /// same operations in the same order, with the reads as gathers: the TAC's
-    /// `log2` ROM ([`TacRom::log2_avx2`]) and one 4-byte read of the pair layout
-    /// per lane and level for the four texels `T1..T4`.
+    /// same operations in the same order, the TAC's `log2` ROM by
+    /// [`TacRom::log2_avx2`] and the four texels `T1..T4` by one gather of
+    /// 4-byte reads of the pair layout per level.
     #[target_feature(enable = "avx2")]
     #[inline]
     pub(crate) fn sample_avx2(&self, u: __m256, v: __m256, footprint: __m256) -> __m256 {
+        let (k, kr, fu, fv) = self.level_avx2(u, v, footprint);
+        let fine = self.bilinear_avx2(k, fu, fv);
+        // `kr == 0` in every lane (either zero's sign: `kr` is never NaN).
+        if _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_NEQ_UQ>(kr, _mm256_setzero_ps())) == 0 {
+            return fine;
+        }
+        let k = self.coarser_avx2(k);
+        let coarse = self.bilinear_avx2(k, fu, fv);
+        _mm256_add_ps(fine, _mm256_mul_ps(kr, _mm256_sub_ps(coarse, fine)))
+    }
+
+    /// [`Self::sample_avx2`] of two groups of eight pixels side by side (a whole
+    /// cell), bit for bit: each step done for both before the next, so that the
+    /// two chains of dependent operations overlap, and one test of both groups'
+    /// `kr` for the coarser level.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(crate) fn sample2_avx2(&self, u: [__m256; 2], v: [__m256; 2], footprint: [__m256; 2]) -> [__m256; 2] {
+        let (k0, kr0, fu0, fv0) = self.level_avx2(u[0], v[0], footprint[0]);
+        let (k1, kr1, fu1, fv1) = self.level_avx2(u[1], v[1], footprint[1]);
+        let fine = [self.bilinear_avx2(k0, fu0, fv0), self.bilinear_avx2(k1, fu1, fv1)];
+        let zero = _mm256_setzero_ps();
+        let blends = _mm256_or_ps(_mm256_cmp_ps::<_CMP_NEQ_UQ>(kr0, zero), _mm256_cmp_ps::<_CMP_NEQ_UQ>(kr1, zero));
+        if _mm256_movemask_ps(blends) == 0 {
+            return fine;
+        }
+        let (k0, k1) = (self.coarser_avx2(k0), self.coarser_avx2(k1));
+        let coarse = [self.bilinear_avx2(k0, fu0, fv0), self.bilinear_avx2(k1, fu1, fv1)];
+        [
+            _mm256_add_ps(fine[0], _mm256_mul_ps(kr0, _mm256_sub_ps(coarse[0], fine[0]))),
+            _mm256_add_ps(fine[1], _mm256_mul_ps(kr1, _mm256_sub_ps(coarse[1], fine[1]))),
+        ]
+    }
+
+    /// The level `k`, the blend `kr` to the next and the fractional parts of `u`,
+    /// `v` of eight pixels ([`Self::sample_lanes`] up to its first look-up).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn level_avx2(&self, u: __m256, v: __m256, footprint: __m256) -> (__m256i, __m256, __m256, __m256) {
         let n = self.log2_side;
         // Level of detail ([`Self::lod`], [`lod_of_texels`]).
         let (side, top, beyond) = (self.side() as f32, n as f32, (2u32 << n) as f32);
@@ -331,15 +370,15 @@ impl TextureMap {
         let floor = _mm256_floor_ps(lod);
         let kr = _mm256_sub_ps(lod, floor);
         let k = small_int_avx2(floor);
-        let (fu, fv) = (fract01_avx2(u), fract01_avx2(v));
-        let fine = self.bilinear_avx2(k, fu, fv);
-        // `kr == 0` in every lane (either zero's sign: `kr` is never NaN).
-        if _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_NEQ_UQ>(kr, _mm256_setzero_ps())) == 0 {
-            return fine;
-        }
-        let k = _mm256_min_epi32(_mm256_add_epi32(k, _mm256_set1_epi32(1)), _mm256_set1_epi32(n as i32));
-        let coarse = self.bilinear_avx2(k, fu, fv);
-        _mm256_add_ps(fine, _mm256_mul_ps(kr, _mm256_sub_ps(coarse, fine)))
+        (k, kr, fract01_avx2(u), fract01_avx2(v))
+    }
+
+    /// Level `k + 1`, or `k` again at the last level (where `kr` is 0 and the
+    /// coarse value drops out of the blend).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn coarser_avx2(&self, k: __m256i) -> __m256i {
+        _mm256_min_epi32(_mm256_add_epi32(k, _mm256_set1_epi32(1)), _mm256_set1_epi32(self.log2_side as i32))
     }
 
     /// [`LevelLookup`] and its read in level `k` per lane (at most `n`) at the
@@ -1011,6 +1050,29 @@ mod tests {
         std::is_x86_feature_detected!("avx2").then(|| unsafe { run(map, u, v, footprint) })
     }
 
+    /// Two groups of eight lanes of [`TextureMap::sample2_avx2`], where the
+    /// processor has AVX2.
+    #[cfg(target_arch = "x86_64")]
+    fn sample2_avx2_lanes(map: &TextureMap, points: [[&[f32; 8]; 3]; 2]) -> Option<[[f32; 8]; 2]> {
+        #[target_feature(enable = "avx2")]
+        #[allow(unsafe_code, reason = "loads and stores of arrays of a register's size")]
+        fn run(map: &TextureMap, points: [[&[f32; 8]; 3]; 2]) -> [[f32; 8]; 2] {
+            let mut out = [[0.0f32; 8]; 2];
+            // SAFETY: each array is 8 `f32`, the 32 bytes each load or store touches.
+            unsafe {
+                let load = |g: usize, i: usize| _mm256_loadu_ps(points[g][i].as_ptr());
+                let t = map.sample2_avx2([load(0, 0), load(1, 0)], [load(0, 1), load(1, 1)], [load(0, 2), load(1, 2)]);
+                for (out, t) in out.iter_mut().zip(t) {
+                    _mm256_storeu_ps(out.as_mut_ptr(), t);
+                }
+            }
+            out
+        }
+        // SAFETY: the processor has AVX2.
+        #[allow(unsafe_code, reason = "a test of the AVX2 copy, after detection")]
+        std::is_x86_feature_detected!("avx2").then(|| unsafe { run(map, points) })
+    }
+
     /// Sixteen lanes of [`TextureMap::sample_avx512`], where the processor has
     /// AVX-512F: the eight points twice, the second time in reverse order.
     #[cfg(target_arch = "x86_64")]
@@ -1063,6 +1125,29 @@ mod tests {
             if let Some(avx512) = avx512 {
                 assert_eq!(avx512[l].to_bits(), expect, "{at}: AVX-512");
                 assert_eq!(avx512[15 - l].to_bits(), expect, "{at}: AVX-512, upper lanes");
+            }
+        }
+        // The AVX2 copy's two groups side by side: with the eight points in
+        // reverse order, at their footprints and at footprints a millionth of
+        // them (mostly magnified: no coarser level in that group alone).
+        #[cfg(target_arch = "x86_64")]
+        {
+            let reverse = |x: &[f32; 8]| -> [f32; 8] { std::array::from_fn(|l| x[7 - l]) };
+            let (ru, rv, rf) = (reverse(u), reverse(v), reverse(footprint));
+            let tiny = rf.map(|f| f * 1e-6);
+            for second in [&rf, &tiny] {
+                for (a, b) in [(0, 1), (1, 0)] {
+                    let groups = [[u, v, footprint], [&ru, &rv, second]];
+                    let Some(pair) = sample2_avx2_lanes(map, [groups[a], groups[b]]) else { return };
+                    for (g, out) in [(a, pair[0]), (b, pair[1])] {
+                        let [u, v, f] = groups[g];
+                        for l in 0..8 {
+                            let expect = plain_sample(map, u[l], v[l], f[l]).to_bits();
+                            let at = format!("{map:?} u {} v {} fp {}", u[l], v[l], f[l]);
+                            assert_eq!(out[l].to_bits(), expect, "{at}: AVX2, two groups");
+                        }
+                    }
+                }
             }
         }
     }
