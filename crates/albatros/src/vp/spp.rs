@@ -80,6 +80,11 @@ pub struct SubpixelProcessors {
     /// first write per frame.
     open_pixels: u64,
     thin: Vec<[u16; 16]>,
+    /// The processor has what [`Self::table_code_avx2`] is compiled for
+    /// ([`has_avx2`]) and no AVX-512 (whose vertex pixels [`vertex_words`] takes):
+    /// detected once here, a check per fragment cost some 20 instructions of the
+    /// fragment's dispatch. Private, so only the detection sets it.
+    avx2: bool,
 }
 
 /// Rounds a pixel-relative V (in [`super::edge::EdgeCoord`] units) to eighths of a
@@ -157,6 +162,7 @@ impl SubpixelProcessors {
             cleared_share: None,
             clean: false,
             thin: (0..64).map(thinning).collect(),
+            avx2: has_avx2() && !has_avx512(),
         };
         s.clear();
         s
@@ -245,10 +251,12 @@ impl SubpixelProcessors {
     }
 
     /// The fragment's code: per pixel, the AND over the crossing edges of their
-    /// subpixel sets (no masking).
-    // Kept out of line: inlined into the counting variant of the VP's loop it made
-    // that loop's code larger and the counters' cost several times their work.
-    #[inline(never)]
+    /// subpixel sets (no masking). Only the dispatch is inlined: the copies it calls
+    /// are kept out of line (inlined into the counting variant of the VP's loop, the
+    /// code made that loop's code larger and the counters' cost several times their
+    /// work), and a call of the AVX2 copy from an out-of-line dispatch cost some 36
+    /// instructions a fragment.
+    #[inline]
     pub fn fragment_code<const STATS: bool>(
         &self,
         frag: &Fragment,
@@ -259,6 +267,15 @@ impl SubpixelProcessors {
             return self.fragment_code_exact::<STATS>(frag, edges, counters);
         }
         #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: `table_code_avx2` only needs the features `has_avx2` found the
+            // processor to have when `self` was made (`avx2` is set nowhere else).
+            #[allow(unsafe_code, reason = "a function compiled for AVX2, after detection")]
+            unsafe {
+                return self.table_code_avx2::<STATS>(frag, edges, counters);
+            }
+        }
+        #[cfg(target_arch = "x86_64")]
         if std::is_x86_feature_detected!("sse2") {
             // SAFETY: `table_code_sse2` only needs SSE2, which the processor was just
             // found to have (on x86-64 it always has: the check is a constant).
@@ -267,12 +284,13 @@ impl SubpixelProcessors {
                 return self.table_code_sse2::<STATS>(frag, edges, counters);
             }
         }
-        self.table_code::<STATS>(frag, edges, counters, line_indices_portable, near_end_cell)
+        self.table_code::<STATS>(frag, edges, counters, line_indices_portable, near_end_cell, vertex_words)
     }
 
     /// [`Self::table_code`] with the row-table indices in SSE2 ([`line_indices_sse2`]).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "sse2")]
+    #[inline(never)]
     fn table_code_sse2<const STATS: bool>(
         &self,
         frag: &Fragment,
@@ -285,11 +303,39 @@ impl SubpixelProcessors {
             counters,
             |v1, slope| line_indices_sse2(v1, slope),
             |line, px, py| near_end_cell_sse2(line, px, py),
+            vertex_words,
+        )
+    }
+
+    /// [`Self::table_code_sse2`] compiled for AVX2, with the exact rule's vertex pixels
+    /// by [`vertex_words_avx2`] called directly, where [`vertex_words`] detects the
+    /// processor's features at every call and calls it (some 48 instructions a call
+    /// with its passing of the words, against about 190 for the AVX2 work itself).
+    /// The features are detected once, by [`SubpixelProcessors::new`].
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,bmi1")]
+    #[inline(never)]
+    fn table_code_avx2<const STATS: bool>(
+        &self,
+        frag: &Fragment,
+        edges: &[EdgeCode],
+        counters: &mut Counters,
+    ) -> [u16; 16] {
+        self.table_code::<STATS>(
+            frag,
+            edges,
+            counters,
+            |v1, slope| line_indices_sse2(v1, slope),
+            |line, px, py| near_end_cell_sse2(line, px, py),
+            |e, px, py, vertical, words| vertex_words_avx2(e, px, py, vertical, words),
         )
     }
 
     /// The table modes' fragment code, with `line_indices` giving an edge's four
-    /// row-table indices ([`line_indices_portable`] or a copy of it in SIMD).
+    /// row-table indices ([`line_indices_portable`] or a copy of it in SIMD),
+    /// `near_end` telling whether an edge's end is near the cell ([`near_end_cell`]
+    /// or its copy) and `vertex_words` putting the exact rule's sets at the vertex
+    /// pixels ([`vertex_words`] or its copy for AVX2).
     #[inline(always)]
     fn table_code<const STATS: bool>(
         &self,
@@ -298,6 +344,7 @@ impl SubpixelProcessors {
         counters: &mut Counters,
         line_indices: impl Fn(i64, i64) -> [usize; 4],
         near_end: impl Fn(&ExactLine, u32, u32) -> bool,
+        vertex_words: impl Fn(&EdgeCode, u32, u32, bool, [u64; 4]) -> [u64; 4],
     ) -> [u16; 16] {
         // The code as pixel rows (word `y`, bits `16 x ..` the pixel `(x, y)`) from the
         // vertical edges, and as pixel columns (word `x`, bits `16 y ..`) from the
@@ -853,6 +900,14 @@ fn vertex_words(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64; 4])
                 return vertex_words_avx512(e, px, py, vertical, words);
             }
         }
+        if has_avx2() {
+            // SAFETY: `vertex_words_avx2` only needs the features `has_avx2` just
+            // found the processor to have.
+            #[allow(unsafe_code, reason = "a function compiled for AVX2, after detection")]
+            unsafe {
+                return vertex_words_avx2(e, px, py, vertical, words);
+            }
+        }
         if std::is_x86_feature_detected!("sse4.1") {
             // SAFETY: `vertex_words_sse41` only needs SSE4.1 (and the SSE2 it
             // implies), which the processor was just found to have.
@@ -904,6 +959,156 @@ fn has_avx512() -> bool {
         && std::is_x86_feature_detected!("avx512dq")
         && std::is_x86_feature_detected!("bmi1")
 }
+
+/// Whether the processor has what [`vertex_words_avx2`] and
+/// [`SubpixelProcessors::table_code_avx2`] are compiled for.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn has_avx2() -> bool {
+    std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("bmi1")
+}
+
+/// [`has_avx2`] elsewhere than on x86-64: never.
+#[cfg(not(target_arch = "x86_64"))]
+fn has_avx2() -> bool {
+    false
+}
+
+/// [`has_avx512`] elsewhere than on x86-64: never.
+#[cfg(not(target_arch = "x86_64"))]
+fn has_avx512() -> bool {
+    false
+}
+
+/// [`vertex_words_sse41`] in AVX2 for processors without AVX-512 (Zen 3): the same
+/// sets (tested), about 200 instructions a call against 256 for the SSE4.1 path
+/// with its detection, at terrain's 3.6 vertex pixels a call. As in [`vertex_words_avx512`], the vertex pixels come
+/// in the words' order and -E at the first centre of all 16 pixels is made at once
+/// (four registers of 64-bit lanes, each clamped to 32 bits by two compares and
+/// blends, which is the SSE2 path's clamp, then narrowed and stored); per vertex
+/// pixel one broadcast of its value, two 8-lane compares against the 16 centres'
+/// offsets ([`ExactLine32`]) and two packs give its set, blended into its lane of
+/// the words (held in a register) under a mask read from a table.
+/// Against the SSE4.1 path it saves each pixel's products and clamp and its put
+/// into the words (some 46 instructions a vertex pixel there, about 15 here), for a
+/// longer set-up (about 150). The sets are not stored as `u16` and read back as one
+/// load: that load missed the store-to-load forwarding, and in time the copy was no
+/// faster than the SSE4.1 path's.
+///
+/// Called directly from [`SubpixelProcessors::table_code_avx2`], so it takes every
+/// edge and cell: those the 32-bit paths do not take ([`EdgeCode::exact32`],
+/// [`CELL_LIMIT_32`]) go on to [`vertex_words`]. Out of line, as `vertex_words`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,bmi1")]
+#[inline(never)]
+fn vertex_words_avx2(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64; 4]) -> [u64; 4] {
+    if !e.exact32 || (px | py) >= CELL_LIMIT_32 {
+        return vertex_words(e, px, py, vertical, words);
+    }
+    use std::arch::x86_64::{
+        __m256i, _mm256_add_epi32, _mm256_blendv_epi8, _mm256_castps_si256, _mm256_castsi256_ps,
+        _mm256_castsi256_si128, _mm256_cmpgt_epi32, _mm256_cmpgt_epi64, _mm256_extracti128_si256, _mm256_loadu_si256,
+        _mm256_mullo_epi32, _mm256_packs_epi32, _mm256_permute4x64_epi64, _mm256_set1_epi16, _mm256_set1_epi32,
+        _mm256_set1_epi64x, _mm256_set_epi64x, _mm256_setr_epi32, _mm256_shuffle_ps, _mm256_storeu_si256,
+        _mm256_sub_epi64, _mm_movemask_epi8, _mm_packs_epi16,
+    };
+    const ONE: i64 = SNAP_ONE as i64;
+    const HALF_SUB: i64 = (SNAP_ONE / 8) as i64;
+    const SUB: i64 = (SNAP_ONE / 4) as i64;
+    let line = &e.exact;
+    // Lane `4 w + l` of the words (word `w`, bits `16 l ..`) is the pixel `(l, w)` of
+    // a vertical edge's cell and `(w, l)` of a horizontal one's.
+    let near = vertex_spread(vertex_windows_sse41(line, px, py), !vertical);
+    if near == 0 {
+        return words;
+    }
+    // As `vertex_words_sse41`: the greater side is `E >= threshold`.
+    debug_assert_eq!(line.a >= 0, on_line_greater(line));
+    let threshold = i64::from(line.a < 0);
+    let e_cell =
+        line.a * (i64::from(px) * ONE + HALF_SUB) + line.b * (i64::from(py) * ONE + HALF_SUB) + line.c - threshold;
+    let (pixel_x, pixel_y) = (line.a * ONE, line.b * ONE);
+    let (per_lane, per_word) = if vertical { (pixel_x, pixel_y) } else { (pixel_y, pixel_x) };
+    // -E at each pixel's first centre, a word's four lanes a register (every term
+    // below 2^48: no overflow), clamped to 32 bits.
+    let first =
+        _mm256_sub_epi64(_mm256_set1_epi64x(-e_cell), _mm256_set_epi64x(3 * per_lane, 2 * per_lane, per_lane, 0));
+    let down = _mm256_set1_epi64x(per_word);
+    let (max, min) = (_mm256_set1_epi64x(i64::from(i32::MAX)), _mm256_set1_epi64x(i64::from(i32::MIN)));
+    let clamp = |v: __m256i| {
+        let v = _mm256_blendv_epi8(v, max, _mm256_cmpgt_epi64(v, max));
+        _mm256_blendv_epi8(v, min, _mm256_cmpgt_epi64(min, v))
+    };
+    let w0 = clamp(first);
+    let w1 = clamp(_mm256_sub_epi64(first, down));
+    let w2 = clamp(_mm256_sub_epi64(_mm256_sub_epi64(first, down), down));
+    let w3 = clamp(_mm256_sub_epi64(_mm256_sub_epi64(_mm256_sub_epi64(first, down), down), down));
+    // The low halves of two words' lanes as eight `i32` in lane order: the shuffle
+    // gives `a0 a1 b0 b1 | a2 a3 b2 b3`, the permute puts the pairs in order.
+    const LOW_HALVES: i32 = 0b10_00_10_00;
+    const PAIRS_IN_ORDER: i32 = 0b11_01_10_00;
+    let narrow = |a: __m256i, b: __m256i| {
+        let mixed =
+            _mm256_castps_si256(_mm256_shuffle_ps::<LOW_HALVES>(_mm256_castsi256_ps(a), _mm256_castsi256_ps(b)));
+        _mm256_permute4x64_epi64::<PAIRS_IN_ORDER>(mixed)
+    };
+    let mut t = [0i32; 16];
+    // SAFETY: `t` is 16 `i32`, the 2 x 32 bytes the stores write.
+    #[allow(unsafe_code, reason = "unaligned stores into an array of two registers' size")]
+    unsafe {
+        _mm256_storeu_si256(t.as_mut_ptr().cast(), narrow(w0, w1));
+        _mm256_storeu_si256(t.as_mut_ptr().add(8).cast(), narrow(w2, w3));
+    }
+    // The offsets of a pixel's 16 centres from its first (fit: `ExactLine32`; the
+    // same numbers as the SSE2 path's rows), subpixels 0-3 and 8-11 in one register
+    // and 4-7 and 12-15 in the other: each pack then keeps the subpixels' order.
+    let (step_x, step_y) = (_mm256_set1_epi32((line.a * SUB) as i32), _mm256_set1_epi32((line.b * SUB) as i32));
+    let columns = _mm256_mullo_epi32(step_x, _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3));
+    let rows_02 = _mm256_mullo_epi32(step_y, _mm256_setr_epi32(0, 0, 0, 0, 2, 2, 2, 2));
+    let rows_13 = _mm256_mullo_epi32(step_y, _mm256_setr_epi32(1, 1, 1, 1, 3, 3, 3, 3));
+    let (offsets_02, offsets_13) = (_mm256_add_epi32(columns, rows_02), _mm256_add_epi32(columns, rows_13));
+    // Per vertex pixel: its centres off the greater side, `offset < -E0`.
+    // The words in a register, each vertex pixel's set blended into its lane (in a
+    // register: sets stored as `u16` and read back as one load would miss the
+    // store-to-load forwarding).
+    // SAFETY: `words` is 32 bytes, a register's size.
+    #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
+    let mut w = unsafe { _mm256_loadu_si256(words.as_ptr().cast()) };
+    // `greater = !less`; LR = 0 keeps the other side.
+    let flip: u16 = if e.lr { 0 } else { u16::MAX };
+    let mut left = near;
+    while left != 0 {
+        let lane = left.trailing_zeros() as usize & 15;
+        left &= left - 1;
+        let value = _mm256_set1_epi32(t[lane]);
+        let both = _mm256_packs_epi32(_mm256_cmpgt_epi32(value, offsets_02), _mm256_cmpgt_epi32(value, offsets_13));
+        let bytes = _mm_packs_epi16(_mm256_castsi256_si128(both), _mm256_extracti128_si256::<1>(both));
+        let set = !(_mm_movemask_epi8(bytes) as u16) ^ flip;
+        // SAFETY: `LANE_MASKS[lane]` is 16 `u16`, 32 bytes, a register's size.
+        #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
+        let chosen = unsafe { _mm256_loadu_si256(LANE_MASKS[lane].as_ptr().cast()) };
+        w = _mm256_blendv_epi8(w, _mm256_set1_epi16(set as i16), chosen);
+    }
+    let mut out = [0u64; 4];
+    // SAFETY: `out` is 32 bytes, a register's size.
+    #[allow(unsafe_code, reason = "an unaligned store into an array of a register's size")]
+    unsafe {
+        _mm256_storeu_si256(out.as_mut_ptr().cast(), w);
+    }
+    out
+}
+
+/// [`vertex_words_avx2`]'s blend masks: entry `i` selects the 16-bit lane `i`.
+#[cfg(target_arch = "x86_64")]
+static LANE_MASKS: [[u16; 16]; 16] = {
+    let mut m = [[0u16; 16]; 16];
+    let mut i = 0;
+    while i < 16 {
+        m[i][i] = u16::MAX;
+        i += 1;
+    }
+    m
+};
 
 /// [`vertex_words_sse41`] in AVX-512: the same sets (tested), in about half its
 /// instructions. The vertex pixels come in the words' order (bit `4 word + lane`),
@@ -1378,7 +1583,7 @@ mod tests {
         use super::super::edge::ScreenFx;
         let mut next = xorshift(0x0BAD_CAFE_F00D_1234);
         let one = i64::from(SNAP_ONE);
-        let (mut long, mut sse41, mut avx512) = (0, 0, 0);
+        let (mut long, mut sse41, mut avx2, mut avx512) = (0, 0, 0, 0);
         for k in 0..100_000 {
             let (px, py) = (4 * next(2048) as u32, 4 * next(2048) as u32);
             let mut point = |near: bool| {
@@ -1416,6 +1621,13 @@ mod tests {
                         assert_eq!(got, want, "SSE4.1: {e:?} ({px}, {py})");
                         sse41 += 1;
                     }
+                    if has_avx2() {
+                        // SAFETY: the processor has what `has_avx2` asks.
+                        #[allow(unsafe_code, reason = "a function compiled for AVX2, after detection")]
+                        let got = unsafe { vertex_words_avx2(&e, px, py, vertical, words) };
+                        assert_eq!(got, want, "AVX2: {e:?} ({px}, {py})");
+                        avx2 += 1;
+                    }
                     if has_avx512() {
                         // SAFETY: the processor has what `has_avx512` asks.
                         #[allow(unsafe_code, reason = "a function compiled for AVX-512, after detection")]
@@ -1429,7 +1641,7 @@ mod tests {
             }
         }
         assert!(long > 1000, "{long}");
-        eprintln!("vertex_words: {sse41} cases in SSE4.1, {avx512} in AVX-512");
+        eprintln!("vertex_words: {sse41} cases in SSE4.1, {avx2} in AVX2, {avx512} in AVX-512");
     }
 
     /// The SSE2 row-table indices are the portable ones: V and slopes of every size
@@ -1496,7 +1708,14 @@ mod tests {
             let frag = Fragment { px, py, active: &active, cells: super::super::gq::ONE_CELL };
             let mut counters = Counters::new(3);
             let want = spp.fragment_code::<false>(&frag, &edges, &mut counters);
-            let got = spp.table_code::<false>(&frag, &edges, &mut counters, line_indices_portable, near_end_cell);
+            let got = spp.table_code::<false>(
+                &frag,
+                &edges,
+                &mut counters,
+                line_indices_portable,
+                near_end_cell,
+                vertex_words,
+            );
             assert_eq!(got, want, "case {k}");
         }
     }
