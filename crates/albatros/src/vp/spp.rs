@@ -980,6 +980,43 @@ fn has_avx512() -> bool {
     false
 }
 
+/// What the register copies of the vertex pixels ([`vertex_words_avx2`],
+/// [`vertex_words_avx512`]) start from: the vertex pixels and the exact line's
+/// value at the cell.
+#[cfg(target_arch = "x86_64")]
+struct VertexStart {
+    /// The vertex pixels, lane `4 w + l` of the words (word `w`, bits `16 l ..`): the
+    /// pixel `(l, w)` of a vertical edge's cell and `(w, l)` of a horizontal one's.
+    near: u16,
+    /// `E - threshold` at the first subpixel centre of the cell's pixel (0, 0): the
+    /// greater side is `E >= threshold` (as in [`vertex_words_sse41`]).
+    e_cell: i64,
+    /// `E`'s change from a lane to the next, and from a word to the next.
+    per_lane: i64,
+    per_word: i64,
+}
+
+/// [`VertexStart`] of `line` in the cell at `(px, py)`, or `None` when no pixel of
+/// the cell is a vertex pixel.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "sse4.1")]
+#[inline]
+fn vertex_start(line: &ExactLine, px: u32, py: u32, vertical: bool) -> Option<VertexStart> {
+    const ONE: i64 = SNAP_ONE as i64;
+    const HALF_SUB: i64 = (SNAP_ONE / 8) as i64;
+    let near = vertex_spread(vertex_windows_sse41(line, px, py), !vertical);
+    if near == 0 {
+        return None;
+    }
+    debug_assert_eq!(line.a >= 0, on_line_greater(line));
+    let threshold = i64::from(line.a < 0);
+    let e_cell =
+        line.a * (i64::from(px) * ONE + HALF_SUB) + line.b * (i64::from(py) * ONE + HALF_SUB) + line.c - threshold;
+    let (pixel_x, pixel_y) = (line.a * ONE, line.b * ONE);
+    let (per_lane, per_word) = if vertical { (pixel_x, pixel_y) } else { (pixel_y, pixel_x) };
+    Some(VertexStart { near, e_cell, per_lane, per_word })
+}
+
 /// [`vertex_words_sse41`] in AVX2 for processors without AVX-512 (Zen 3): the same
 /// sets (tested), about 200 instructions a call against 256 for the SSE4.1 path
 /// with its detection, at terrain's 3.6 vertex pixels a call. As in [`vertex_words_avx512`], the vertex pixels come
@@ -1012,23 +1049,11 @@ fn vertex_words_avx2(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64
         _mm256_set1_epi64x, _mm256_set_epi64x, _mm256_setr_epi32, _mm256_shuffle_ps, _mm256_storeu_si256,
         _mm256_sub_epi64, _mm_movemask_epi8, _mm_packs_epi16,
     };
-    const ONE: i64 = SNAP_ONE as i64;
-    const HALF_SUB: i64 = (SNAP_ONE / 8) as i64;
     const SUB: i64 = (SNAP_ONE / 4) as i64;
     let line = &e.exact;
-    // Lane `4 w + l` of the words (word `w`, bits `16 l ..`) is the pixel `(l, w)` of
-    // a vertical edge's cell and `(w, l)` of a horizontal one's.
-    let near = vertex_spread(vertex_windows_sse41(line, px, py), !vertical);
-    if near == 0 {
+    let Some(VertexStart { near, e_cell, per_lane, per_word }) = vertex_start(line, px, py, vertical) else {
         return words;
-    }
-    // As `vertex_words_sse41`: the greater side is `E >= threshold`.
-    debug_assert_eq!(line.a >= 0, on_line_greater(line));
-    let threshold = i64::from(line.a < 0);
-    let e_cell =
-        line.a * (i64::from(px) * ONE + HALF_SUB) + line.b * (i64::from(py) * ONE + HALF_SUB) + line.c - threshold;
-    let (pixel_x, pixel_y) = (line.a * ONE, line.b * ONE);
-    let (per_lane, per_word) = if vertical { (pixel_x, pixel_y) } else { (pixel_y, pixel_x) };
+    };
     // -E at each pixel's first centre, a word's four lanes a register (every term
     // below 2^48: no overflow), clamped to 32 bits.
     let first =
@@ -1127,23 +1152,11 @@ fn vertex_words_avx512(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u
         _mm512_maskz_set1_epi64, _mm512_mullo_epi32, _mm512_mullo_epi64, _mm512_permutexvar_epi32, _mm512_set1_epi32,
         _mm512_set1_epi64, _mm512_set_epi32, _mm512_set_epi64, _mm_cvtsi32_si128,
     };
-    const ONE: i64 = SNAP_ONE as i64;
-    const HALF_SUB: i64 = (SNAP_ONE / 8) as i64;
     const SUB: i64 = (SNAP_ONE / 4) as i64;
     let line = &e.exact;
-    // Lane `4 w + l` of the words (word `w`, bits `16 l ..`) is the pixel `(l, w)` of
-    // a vertical edge's cell and `(w, l)` of a horizontal one's.
-    let near = vertex_spread(vertex_windows_sse41(line, px, py), !vertical);
-    if near == 0 {
+    let Some(VertexStart { near, e_cell, per_lane, per_word }) = vertex_start(line, px, py, vertical) else {
         return words;
-    }
-    // As `vertex_words_sse41`: the greater side is `E >= threshold`.
-    debug_assert_eq!(line.a >= 0, on_line_greater(line));
-    let threshold = i64::from(line.a < 0);
-    let e_cell =
-        line.a * (i64::from(px) * ONE + HALF_SUB) + line.b * (i64::from(py) * ONE + HALF_SUB) + line.c - threshold;
-    let (pixel_x, pixel_y) = (line.a * ONE, line.b * ONE);
-    let (per_lane, per_word) = if vertical { (pixel_x, pixel_y) } else { (pixel_y, pixel_x) };
+    };
     // -E at each pixel's first centre (every term below 2^48: no overflow), lanes of
     // words 0 and 1, then 2 and 3, saturated to 32 bits.
     let lanes = _mm512_mullo_epi64(_mm512_set1_epi64(-per_lane), _mm512_set_epi64(3, 2, 1, 0, 3, 2, 1, 0));

@@ -2175,6 +2175,19 @@ impl Log8Passes for Log8Avx2 {
     }
 }
 
+/// Words `8 half .. 8 half + 8` of a run, one register.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn words_avx2(run: &[Word8; LOG8_RUN], half: usize) -> __m256i {
+    let part: &[Word8; 8] = run[8 * half..][..8].try_into().expect("8 words");
+    // SAFETY: `part` is 32 bytes, which the load reads.
+    #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
+    unsafe {
+        _mm256_loadu_si256(part.as_ptr().cast())
+    }
+}
+
 /// [`Log8Passes::flat`] in AVX2: the differing bits of the run's words from its
 /// first word and from the words below, or-ed in two registers. (The portable
 /// copy's comparison with an array of the first word built that array on the stack
@@ -2189,20 +2202,16 @@ fn run_flat_avx2(row: &[Word8; LOG8_RUN], below: &[Word8; LOG8_RUN]) -> bool {
     let first = _mm256_set1_epi32(row[0] as i32);
     let mut differ = _mm256_setzero_si256();
     for half in 0..LOG8_RUN / WORDS {
-        let (a, b): (&[Word8; WORDS], &[Word8; WORDS]) = (
-            row[WORDS * half..][..WORDS].try_into().expect("8 words"),
-            below[WORDS * half..][..WORDS].try_into().expect("8 words"),
-        );
-        // SAFETY: `a` and `b` are 32 bytes each, which the loads read.
-        #[allow(unsafe_code, reason = "unaligned loads of arrays of a register's size")]
-        let (a, b) = unsafe { (_mm256_loadu_si256(a.as_ptr().cast()), _mm256_loadu_si256(b.as_ptr().cast())) };
+        let (a, b) = (words_avx2(row, half), words_avx2(below, half));
         differ = _mm256_or_si256(differ, _mm256_or_si256(_mm256_xor_si256(a, first), _mm256_xor_si256(a, b)));
     }
     _mm256_testz_si256(differ, differ) == 1
 }
 
+/// Entries of the table that one `vpshufb` reads ([`bytes16_avx2`]).
+const SHUFFLE_TABLE: usize = 16;
 /// Entries of a block of [`PairMeans::code_softplus`] that one `vpshufb` reads.
-const SOFTPLUS_BLOCK: usize = 16;
+const SOFTPLUS_BLOCK: usize = SHUFFLE_TABLE;
 /// Blocks of [`PairMeans::code_softplus`].
 const SOFTPLUS_BLOCKS: usize = (1 << PAIR_MEANS_BITS) / SOFTPLUS_BLOCK;
 
@@ -2211,7 +2220,16 @@ const SOFTPLUS_BLOCKS: usize = (1 << PAIR_MEANS_BITS) / SOFTPLUS_BLOCK;
 #[target_feature(enable = "avx2")]
 #[inline]
 fn block_avx2(table: &[u8; 1 << PAIR_MEANS_BITS], k: usize) -> __m256i {
-    let part: &[u8; SOFTPLUS_BLOCK] = table[SOFTPLUS_BLOCK * k..][..SOFTPLUS_BLOCK].try_into().expect("a block");
+    bytes16_avx2(&table[SOFTPLUS_BLOCK * k..])
+}
+
+/// The first [`SHUFFLE_TABLE`] bytes of `at` in both halves of a register (the
+/// table a `vpshufb` reads).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn bytes16_avx2(at: &[u8]) -> __m256i {
+    let part: &[u8; SHUFFLE_TABLE] = at[..SHUFFLE_TABLE].try_into().expect("16 bytes");
     // SAFETY: `part` is 16 bytes, which the load reads.
     #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
     let loaded = unsafe { _mm_loadu_si128(part.as_ptr().cast()) };
@@ -2262,14 +2280,8 @@ fn read_out_log8_pass1_avx2(
     let log8_zero = _mm256_set1_epi16(LOG8_ZERO);
     // Each pixel's R, G, B lanes (the fourth, the word's zero byte, set to 0).
     let components = _mm256_set1_epi64x(0x0000_FFFF_FFFF_FFFF);
-    for half in 0..2 {
-        let (a, b): (&[Word8; WORDS], &[Word8; WORDS]) = (
-            row[WORDS * half..][..WORDS].try_into().expect("8 words"),
-            below[WORDS * half..][..WORDS].try_into().expect("8 words"),
-        );
-        // SAFETY: `a` and `b` are 32 bytes each, which the loads read.
-        #[allow(unsafe_code, reason = "unaligned loads of arrays of a register's size")]
-        let (a, b) = unsafe { (_mm256_loadu_si256(a.as_ptr().cast()), _mm256_loadu_si256(b.as_ptr().cast())) };
+    for half in 0..LOG8_RUN / WORDS {
+        let (a, b) = (words_avx2(row, half), words_avx2(below, half));
         let (hi, lo) = (_mm256_max_epu8(a, b), _mm256_min_epu8(a, b));
         let d = _mm256_sub_epi8(hi, lo);
         // Codes less than 16 apart (the common case) read the first block.
@@ -2340,7 +2352,7 @@ fn read_out_log8_pass2_outlined(
 /// component's gamma addresses over the run within one window. On default, of the
 /// runs that are not flat, 97 % have every difference below 16 and 90 % each
 /// component's addresses within 16.
-const LOG8_WINDOW: usize = 16;
+const LOG8_WINDOW: usize = SHUFFLE_TABLE;
 
 /// [`read_out_log8_pass2`] in AVX2 for a smooth run (the common case: a shaded face,
 /// neighbours a few quarter codes apart), else the portable pass. The run's 16
@@ -2372,13 +2384,6 @@ fn read_out_log8_pass2_avx2(
             _mm256_loadu_si256(part.as_ptr().cast())
         }
     };
-    let window = |at: &[u8]| {
-        let part: &[u8; LOG8_WINDOW] = at[..LOG8_WINDOW].try_into().expect("a window");
-        // SAFETY: `part` is 16 bytes, which the load reads.
-        #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
-        let loaded = unsafe { _mm_loadu_si128(part.as_ptr().cast()) };
-        _mm256_broadcastsi128_si256(loaded)
-    };
     // (A lane's index with its high byte's top bit set: `vpshufb` gives 0 there, so
     // a 16-bit lane reads one entry.)
     let high_zero = _mm256_set1_epi16(0xFF00u16 as i16);
@@ -2396,7 +2401,7 @@ fn read_out_log8_pass2_avx2(
     if _mm256_testz_si256(far, far) == 0 {
         return read_out_log8_pass2_outlined(out, run, pairs, table);
     }
-    let softplus = window(&pairs.softplus[..]);
+    let softplus = bytes16_avx2(&pairs.softplus[..]);
     for k in 0..REGISTERS {
         let t = _mm256_shuffle_epi8(softplus, _mm256_or_si256(d[k], high_zero));
         address[k] = _mm256_add_epi16(address[k], t);
@@ -2421,7 +2426,7 @@ fn read_out_log8_pass2_avx2(
     if _mm256_testz_si256(far, far) == 0 || bases.iter().any(|&b| b > LOG8_ADDRESSES - LOG8_WINDOW) {
         return read_out_log8_pass2_outlined(out, run, pairs, table);
     }
-    let windows = bases.map(|b| window(&table[b..]));
+    let windows = bases.map(|b| bytes16_avx2(&table[b..]));
     // Lanes of R and of G (the rest, B and the spare lanes, take B's window).
     let (red, green) = (_mm256_set1_epi64x(0xFFFF), _mm256_set1_epi64x(0xFFFF_0000));
     let mut packed = [_mm256_setzero_si256(); REGISTERS / 2];
