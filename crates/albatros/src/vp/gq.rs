@@ -23,8 +23,10 @@
 //!   memories are read and written without interleaving bits per cell.
 
 use super::edge::{EdgeCode, EdgeCoord, Tg, EDGE_FRAC_BITS};
+use super::spp::ends_near;
 #[cfg(test)]
 use super::tables::GqRom;
+use super::tables::SPP_V_BITS;
 use crate::model::stats::Counters;
 
 /// An edge active in a cell: which edge of the polygon, its TG and LR, and its V at
@@ -809,6 +811,11 @@ impl CellProcessors {
                 continue;
             }
             let (start, end) = (c as usize * stride, ends[c as usize]);
+            if FILL
+                && band_closed(&self.lists[block + start..block + end], poly.edges, child_cell, self.side(child_level))
+            {
+                continue;
+            }
             if LAST || child_level == self.root_level {
                 spp(Fragment {
                     px: child_cell.x * 4,
@@ -867,6 +874,50 @@ impl CellProcessors {
             self.fill(Cell { level: child_level, x, y }, 4 * z + c as usize, opaque, spp);
         }
     }
+}
+
+/// One step of the SPP's `q` (an eighth of a pixel, [`SPP_V_BITS`]) in
+/// [`EdgeCoord`] units: V further apart than this rounds to different `q`.
+const Q_STEP: i64 = 1 << (EDGE_FRAC_BITS - SPP_V_BITS);
+
+/// Whether a cell's two active edges `list` close the polygon over the whole cell
+/// (`cell`, of `side` pixels), so that no subpixel of it can be the polygon's: two
+/// edges of the same TG and opposite LR (the polygon lies between them, above the
+/// LR = 1 edge's V and below the other's) whose V are ordered the other way by at
+/// least a step of `q` ([`Q_STEP`]) at both of the cell's borders, so on every pixel
+/// line between (V is linear). Such cells lie beyond a polygon's sharp vertices,
+/// where its edges' lines have crossed: each edge alone crosses them, and without
+/// this test they are split down to the last level and their fragments' codes come
+/// out empty (two fifths of `default`'s fragments with edges were empty, most of
+/// them here).
+///
+/// Sound for the SPPs: on every pixel line the LR = 1 edge's `q` is greater than the
+/// other's (or both saturate alike at the row table's bound), and at such a pair of
+/// lines the LR = 1 edge's greater-side set lies within the other's, whose complement
+/// the LR = 0 edge takes: the AND is empty in every pixel (a fact of both table
+/// builds, checked over every pair of row-table entries by a test in `spp`). The
+/// exact mode's sets are the sides of lines within 2^-16 pixel of these V, so
+/// disjoint too. The exact rule of the vertex pixels samples lines where the table's
+/// rounding no longer applies, so a cell near either edge's end is left to the SPPs.
+/// Cells of three edges or more are not tested: on `terrain` and `many` the pairs
+/// cost more than they saved (BENCHMARKS.md, session 8).
+///
+/// A modern shortcut beside the machine's GQ (whose CI/CRI codes are per edge),
+/// taken with counting off only ([`CellProcessors::descend_filling`]): the same
+/// subpixels, less work.
+#[inline(always)]
+fn band_closed(list: &[ActiveEdge], edges: &[EdgeCode], cell: Cell, side: u32) -> bool {
+    let [a, b] = list else {
+        return false;
+    };
+    if (a.kind ^ b.kind) & (KIND_VERTICAL | KIND_LR) != KIND_LR {
+        return false;
+    }
+    let (lower, upper) = if a.kind & KIND_LR != 0 { (a, b) } else { (b, a) };
+    lower.v1.0 - upper.v1.0 >= Q_STEP
+        && lower.v2.0 - upper.v2.0 >= Q_STEP
+        && !ends_near(&edges[a.edge as usize].exact, cell.x * side, cell.y * side, side)
+        && !ends_near(&edges[b.edge as usize].exact, cell.x * side, cell.y * side, side)
 }
 
 /// One edge's codes for the four children of a cell ([`child_codes`]).
@@ -1229,7 +1280,9 @@ mod tests {
     /// The descent (lists written by index, codes by the table, the split left when
     /// every child is OUT) reaches the cells the plain descent does, with the same
     /// active edges, in the same order: random triangles, slivers and tiny ones
-    /// among them, on a square screen (no cell pre-masked), no mask in use.
+    /// among them, on a square screen (no cell pre-masked), no mask in use. The
+    /// filling descent reaches them too, but for closed bands ([`band_closed`]) whose
+    /// codes are empty.
     #[test]
     fn descent_is_the_plain_descent() {
         const SIDE: u32 = 256;
@@ -1242,7 +1295,7 @@ mod tests {
             state ^= state << 17;
             state % n
         };
-        let mut checked = 0;
+        let (mut checked, mut dropped) = (0, 0);
         for k in 0..3000 {
             let Some((edges, bbox, p)) = random_triangle(k, root_side, &mut next) else {
                 continue;
@@ -1279,16 +1332,50 @@ mod tests {
             plain_descent(gq.root_level, start, active, &mut want);
             assert_eq!(got, want, "triangle {p:?}");
             assert_eq!(counted, want, "counting, triangle {p:?}");
-            assert_eq!(filled, want, "filling, triangle {p:?}");
+            dropped += filled_drops_only_empty(&filled, &want, &edges, &format!("triangle {p:?}"));
             checked += 1;
         }
         assert!(checked > 2500);
+        // Not vacuous: the filling descent drops closed bands.
+        assert!(dropped > 1000, "{dropped}");
+    }
+
+    /// The filling descent's fragments `filled` are the plain descent's `want`, in the
+    /// same order, less some whose codes are empty in every SPP mode (the cells
+    /// [`band_closed`] drops): returns how many.
+    fn filled_drops_only_empty(
+        filled: &[(u32, u32, Vec<ActiveEdge>)],
+        want: &[(u32, u32, Vec<ActiveEdge>)],
+        edges: &[EdgeCode],
+        what: &str,
+    ) -> usize {
+        use super::super::spp::SubpixelProcessors;
+        use super::super::tables::SppMode;
+        let spps = [SppMode::Area, SppMode::Sample, SppMode::Exact].map(|mode| SubpixelProcessors::new(4, 4, mode));
+        let mut counters = Counters::new(0);
+        let mut rest = filled.iter().peekable();
+        let mut dropped = 0;
+        for w in want {
+            if rest.peek() == Some(&w) {
+                rest.next();
+                continue;
+            }
+            let frag = Fragment { px: w.0, py: w.1, active: &w.2, cells: ONE_CELL };
+            for spp in &spps {
+                let code = spp.fragment_code::<false>(&frag, edges, &mut counters);
+                assert_eq!(code, [0; 16], "{what}: {:?} dropped the cell ({}, {}) of {:?}", spp.mode, w.0, w.1, w.2);
+            }
+            dropped += 1;
+        }
+        assert_eq!(rest.next(), None, "{what}: a fragment the plain descent has not");
+        dropped
     }
 
     /// With every level's mask in use and opaque triangles drawn one over another
     /// (the marks of each feeding the next), the descent with counting off, with
     /// counting on, and the filling descent reach the same cells with the same
-    /// active edges and leave the same marks; the counters of the counting descent
+    /// active edges (the filling descent less closed bands of empty codes) and leave
+    /// the same marks; the counters of the counting descent
     /// are those of the machine's every step (tested by the golden statistics).
     #[test]
     fn descents_agree_under_masks() {
@@ -1329,7 +1416,7 @@ mod tests {
                 }
             });
             assert_eq!(counted, want, "counting, triangle {k} {p:?}");
-            assert_eq!(filled, want, "filling, triangle {k} {p:?}");
+            filled_drops_only_empty(&filled, &want, &edges, &format!("triangle {k} {p:?}"));
             for level in 1..=off.root_level as usize {
                 assert_eq!(on.memories[level].bits, off.memories[level].bits, "level {level}, triangle {k}");
                 assert_eq!(filling.memories[level].bits, off.memories[level].bits, "level {level}, triangle {k}");

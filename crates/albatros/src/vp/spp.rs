@@ -848,6 +848,19 @@ fn exact_into_sse2(
     }
 }
 
+/// Whether one of the edge's endpoints lies within [`VERTEX_MARGIN`] of the square of
+/// `side` pixels at pixel `(px, py)`: whether any pixel there is one of the edge's
+/// vertex pixels ([`vertex_pixels`]), for a cell of any level (the GQ's
+/// [`band_closed`](super::gq) leaves those to the SPPs; [`near_end_cell`] is the last
+/// level's, in the SPPs' hot loop).
+pub fn ends_near(line: &ExactLine, px: u32, py: u32, side: u32) -> bool {
+    let span = (i64::from(side) * i64::from(SNAP_ONE) + 2 * i64::from(VERTEX_MARGIN)) as u64;
+    let x0 = i64::from(px) * i64::from(SNAP_ONE) - i64::from(VERTEX_MARGIN);
+    let y0 = i64::from(py) * i64::from(SNAP_ONE) - i64::from(VERTEX_MARGIN);
+    let within = |(ex, ey): (i32, i32)| ((i64::from(ex) - x0) as u64 <= span) & ((i64::from(ey) - y0) as u64 <= span);
+    within(line.ends[0]) | within(line.ends[1])
+}
+
 /// Whether one of the edge's endpoints lies within [`VERTEX_MARGIN`] of the 4x4 cell
 /// at pixel `(px, py)`: per coordinate `x0 <= e <= x0 + span` as one unsigned compare
 /// of `e - x0` (in `i64`: no wrap), both endpoints without a branch.
@@ -1682,6 +1695,68 @@ mod tests {
             #[allow(unsafe_code, reason = "a function compiled for SSE2, on x86-64")]
             let got = unsafe { line_indices_sse2(v1, slope) };
             assert_eq!(got, line_indices_portable(v1, slope), "v1 {v1}, slope {slope}");
+        }
+    }
+
+    /// The table fact the GQ's closed bands rest on ([`band_closed`](super::super::gq)),
+    /// over every pair of row-table entries of both builds and both TGs: where the
+    /// LR = 1 edge's `q` is greater than the LR = 0 edge's on both lines of a pixel
+    /// row, or both saturate alike at the row table's bounds, the LR = 1 edge's
+    /// greater-side word lies within the other's, so the band's AND is empty.
+    /// Entries whose two lines differ by more than `STEP` are left out: no edge reads
+    /// them (|slope| is at most a pixel a pixel, plus the root values' rounding, so `q`
+    /// moves by at most 9 from a line to the next); the fact fails only beyond 16.
+    #[test]
+    fn greater_lines_nest_greater_sides() {
+        const STEP: i32 = 16;
+        let ordered = |l: i32, u: i32| l > u || (l == u && (l == ROW_Q_MIN || l == ROW_Q_MAX));
+        for mode in [SppMode::Area, SppMode::Sample] {
+            let part_of = SppRowTable::get(mode);
+            for tg in [Tg::Vertical, Tg::Horizontal] {
+                let part = part_of.part(tg);
+                for l1 in ROW_Q_MIN..=ROW_Q_MAX {
+                    for l2 in (l1 - STEP).max(ROW_Q_MIN)..=(l1 + STEP).min(ROW_Q_MAX) {
+                        let lower = part[SppRowTable::index(l1, l2)];
+                        for u1 in ROW_Q_MIN..=l1 {
+                            for u2 in (u1 - STEP).max(ROW_Q_MIN)..=(u1 + STEP).min(l2) {
+                                if ordered(l1, u1) && ordered(l2, u2) {
+                                    let upper = part[SppRowTable::index(u1, u2)];
+                                    assert_eq!(lower & !upper, 0, "{mode:?} {tg:?}: ({l1}, {l2}) over ({u1}, {u2})");
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// [`ends_near`] of a 4x4 cell is [`near_end_cell`], and of any cell it is whether
+    /// [`vertex_pixels`] finds a vertex pixel in one of its 4x4 cells.
+    #[test]
+    fn ends_near_is_a_vertex_pixel_in_the_cell() {
+        use super::super::edge::{EdgeCode, ScreenFx};
+        let mut next = xorshift(0xE4D5_4EA4_0F7E_11CE);
+        for k in 0..20_000 {
+            let side = 4u32 << (k % 4);
+            let (px, py) = (side * next(8) as u32, side * next(8) as u32);
+            let one = i64::from(SNAP_ONE);
+            let mut point = || {
+                let r = i64::from(side) * one;
+                let mut c = |p: u32| (i64::from(p) * one + next(3 * r) - r).clamp(0, 40 * r);
+                (ScreenFx(c(px) as i32), ScreenFx(c(py) as i32))
+            };
+            let (a, b) = (point(), point());
+            let Some(e) = EdgeCode::new(a, b, true, 4096) else { continue };
+            let cells = side / CELL_SIDE;
+            let any = (0..cells * cells).any(|i| {
+                let (x, y) = (px + CELL_SIDE * (i % cells), py + CELL_SIDE * (i / cells));
+                vertex_pixels(&e.exact, x, y) != 0
+            });
+            assert_eq!(ends_near(&e.exact, px, py, side), any, "side {side}, cell ({px}, {py}), {:?}", e.exact.ends);
+            if side == CELL_SIDE {
+                assert_eq!(ends_near(&e.exact, px, py, side), near_end_cell(&e.exact, px, py));
+            }
         }
     }
 
