@@ -28,7 +28,10 @@
 //! on their own ([`Bsp::traverse_subtree`]), and [`FaceRecord`]s keep the faces
 //! the GP reads every frame in that order. Each node keeps the box around its
 //! subtree's faces ([`NodeBounds`]), with which the GP passes over whole subtrees
-//! outside the view volume ([`Bsp::traverse_subtree_culled`]).
+//! outside the view volume ([`Bsp::traverse_subtree_culled`]). Where faces share
+//! their vertices (a mesh, a terrain grid), the record vertices are numbered by
+//! position ([`Bsp::record_vertex_ids_of`]), so that the GP transforms a position
+//! once for the faces around it.
 //!
 //! **Invariant**: for non-intersecting faces, a face that can hide another from the
 //! eye is emitted before it.
@@ -49,6 +52,14 @@ const COST_SAMPLE: usize = 1024;
 const PLANE_EPS: f64 = 1e-6;
 /// Cost of one split against one face of imbalance.
 const SPLIT_COST: i64 = 8;
+/// [`Bsp::vertex_ids`] are kept when the record vertices are at least this many
+/// times the distinct positions: a terrain's grid has each position in about six
+/// triangles (and the GP transforms it once, not six times), `many`'s separate
+/// triangles in one (where looking positions up would cost and save nothing).
+const VERTEX_SHARING: usize = 2;
+/// The record vertices (the first ones, in node order) whose sharing decides
+/// whether all are numbered.
+const VERTEX_SHARING_SAMPLE: usize = 1 << 16;
 
 /// A vertex of a BSP face (world coordinates).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -164,6 +175,10 @@ pub struct Bsp {
     pub records: Vec<FaceRecord>,
     /// The records' vertices, in face order.
     pub record_vertices: Vec<BspVertex>,
+    /// Per record vertex: a number shared by every record vertex at the same
+    /// position (bit for bit), when the tree's faces share their vertices enough
+    /// to be worth it ([`VERTEX_SHARING`]), else empty ([`Bsp::record_vertex_ids_of`]).
+    vertex_ids: Vec<u32>,
     /// Build statistics.
     pub stats: BspStats,
     /// Per node: the faces of its subtree (its own and all below it).
@@ -298,6 +313,7 @@ impl Bsp {
                 face: f.face,
             });
         }
+        self.number_vertices();
         // Children come after their parent in depth-first order.
         let mut count: Vec<u32> = self.nodes.iter().map(|n| n.faces.end - n.faces.start).collect();
         let mut nodes = vec![1u32; self.nodes.len()];
@@ -338,10 +354,42 @@ impl Bsp {
             .collect();
     }
 
+    /// Numbers the record vertices by position ([`Bsp::vertex_ids`]), in order of
+    /// first appearance (so the faces of a subtree, which lie together, have their
+    /// numbers close together), or leaves them unnumbered when few positions are
+    /// shared.
+    fn number_vertices(&mut self) {
+        let number = |vertices: &[BspVertex]| {
+            let mut first = std::collections::HashMap::with_capacity(vertices.len());
+            let ids: Vec<u32> = vertices
+                .iter()
+                .map(|v| {
+                    let next = first.len() as u32;
+                    *first.entry(v.position.to_array().map(f64::to_bits)).or_insert(next)
+                })
+                .collect();
+            (first.len() * VERTEX_SHARING <= vertices.len()).then_some(ids)
+        };
+        // The first faces tell: `many`'s three million separate vertices are not
+        // all hashed (0.8 s of its load) to find that none is shared.
+        let sample = &self.record_vertices[..self.record_vertices.len().min(VERTEX_SHARING_SAMPLE)];
+        self.vertex_ids =
+            if number(sample).is_some() { number(&self.record_vertices) } else { None }.unwrap_or_default();
+    }
+
     /// The vertices of a face's record.
     #[inline]
     pub fn record_vertices_of(&self, r: &FaceRecord) -> &[BspVertex] {
         &self.record_vertices[r.start as usize..r.end as usize]
+    }
+
+    /// The position numbers of a face's record vertices (equal numbers: equal
+    /// positions, bit for bit; in one tree), or `None` when the tree's faces share
+    /// too few vertices for them to be kept (`VERTEX_SHARING`). The GP transforms a
+    /// shared position once ([`crate::gp`]'s vertex cache).
+    #[inline]
+    pub fn record_vertex_ids_of(&self, r: &FaceRecord) -> Option<&[u32]> {
+        self.vertex_ids.get(r.start as usize..r.end as usize)
     }
 
     /// The faces in the subtree of `node` (its own and all below it).

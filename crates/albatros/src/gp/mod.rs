@@ -11,6 +11,13 @@
 //! clipping by the window in the P4 clipping block ([`clip`]), snapping to the
 //! VP's 1/256-pixel grid and set-up ([`setup`]).
 //!
+//! Work shared between faces: a vertex shared by several faces of a mesh (a
+//! terrain's by about six) is transformed and outcoded once while its faces are
+//! met together (a small cache by the tree's position numbers, `VertexCache`),
+//! and a textured face's texture axes are reused by the next face of its instance
+//! and material ([`setup::Setup::add_face`]); both give the very bits the face
+//! by face arithmetic gives.
+//!
 //! Eye coordinates: X right, Y down, Z forward (depth); screen `x = W/2 + f X/Z`,
 //! `y = H/2 + f Y/Z` with `f = (W/2) / tan(fov/2)`. The GP computes in `f64` (the
 //! papers' GP used 32-bit floats; a modern CPU pays nothing for the extra bits) and
@@ -394,6 +401,61 @@ struct Scratch {
     clipped_eye: Vec<EyeVertex>,
     screen: Vec<DVec2>,
     window: Vec<DVec2>,
+    places: VertexCache,
+}
+
+/// log2 of the slots of a [`VertexCache`].
+const VERTEX_CACHE_BITS: u32 = 10;
+/// The slots of a [`VertexCache`].
+const VERTEX_CACHE_SLOTS: usize = 1 << VERTEX_CACHE_BITS;
+
+/// The eye-space positions and outcodes of the vertices met last, by their
+/// position numbers in the tree being traversed ([`Bsp::record_vertex_ids_of`]):
+/// one slot per number modulo [`VERTEX_CACHE_SLOTS`].
+///
+/// Why: the faces of a mesh share their vertices (each of a terrain grid's in about
+/// six triangles), and the traversal meets a subtree's faces together; the
+/// transform and outcode of a position seen a few faces before are taken from
+/// here (about 60 instructions a vertex, on `terrain` ~70 % of them). The same
+/// operations on the same position and matrix give the same bits, so the frame
+/// is unchanged: a slot holds a value only for the tree whose numbers it was
+/// stored under (the cache is emptied when a moving model's tree, with its own
+/// numbers and matrix, is entered and left).
+struct VertexCache {
+    /// Per slot: the position number stored there, or `u32::MAX` for none.
+    tags: Box<[u32; VERTEX_CACHE_SLOTS]>,
+    /// Per slot: its eye-space position and outcode.
+    places: Box<[(DVec3, u8); VERTEX_CACHE_SLOTS]>,
+}
+
+impl Default for VertexCache {
+    fn default() -> Self {
+        Self {
+            tags: Box::new([u32::MAX; VERTEX_CACHE_SLOTS]),
+            places: Box::new([(DVec3::ZERO, 0); VERTEX_CACHE_SLOTS]),
+        }
+    }
+}
+
+impl VertexCache {
+    /// The place of the vertex numbered `id`, from its slot or else `place()`
+    /// (then stored).
+    #[inline(always)]
+    fn get(&mut self, id: u32, place: impl FnOnce() -> (DVec3, u8)) -> (DVec3, u8) {
+        let slot = id as usize & (VERTEX_CACHE_SLOTS - 1);
+        if self.tags[slot] == id {
+            return self.places[slot];
+        }
+        let p = place();
+        self.tags[slot] = id;
+        self.places[slot] = p;
+        p
+    }
+
+    /// Forgets every place (before and after another tree's vertices).
+    fn clear(&mut self) {
+        self.tags.fill(u32::MAX);
+    }
 }
 
 /// What is slotted into the static tree's order besides its own faces.
@@ -426,6 +488,9 @@ struct Shared<'a> {
     /// Whether triangles take [`FrameBuilder::face`]'s path for triangles (the
     /// tests compare it with the general one).
     triangles: bool,
+    /// Whether shared vertices are placed once ([`VertexCache`]; the tests
+    /// compare it with placing every vertex of every face).
+    vertex_cache: bool,
     /// Instance counters (counted once, here).
     counters: GpCounters,
 }
@@ -541,7 +606,7 @@ pub fn frame_stretches_into(
 /// [`frame_stretches_into`] (the frame left as `stretches`), with or without its
 /// shortcuts (`shortcuts`: passing over the static tree's subtrees outside the view
 /// volume, and over the guests' places in a frame with no guests; triangles set up
-/// by a path of their own; the tests compare the two).
+/// by a path of their own; shared vertices placed once; the tests compare the two).
 #[allow(clippy::too_many_arguments)]
 fn frame_with(
     db: &Database,
@@ -558,6 +623,7 @@ fn frame_with(
     let mut shared = Shared::new(db, view, *config);
     shared.cull = shortcuts;
     shared.triangles = shortcuts;
+    shared.vertex_cache = shortcuts;
     let shared = shared;
     // Only the places where guests are attached this frame are visited (a
     // terrain's tree has twice as many empty places as faces).
@@ -772,6 +838,7 @@ impl<'a> Shared<'a> {
             frustum: view.frustum(),
             cull: true,
             triangles: true,
+            vertex_cache: true,
             counters: GpCounters::default(),
         };
         s.instances();
@@ -837,7 +904,7 @@ impl FrameBuilder<'_> {
             Visit::Face(i) => {
                 let bsp = &f.db.bsp;
                 let r = &bsp.records[i as usize];
-                self.face(r, bsp.record_vertices_of(r), &f.view.world_to_eye, f.view.position, f.sun_world);
+                self.face(r, bsp, &f.view.world_to_eye, f.view.position, f.sun_world);
             }
             Visit::Guests(n, slot) => {
                 if self.places.get(n as usize).is_none_or(|&p| p >> slot as u8 & 1 != 0) {
@@ -903,17 +970,24 @@ impl FrameBuilder<'_> {
         let eye_model = info.world_to_model.transform_point3(self.f.view.position);
         // P5: the light direction is taken into model coordinates.
         let sun_model = (DMat3::from_mat4(info.model_to_world).transpose() * self.f.sun_world).normalize_or_zero();
+        // Its tree's own position numbers and matrix.
+        self.scratch.places.clear();
         m.bsp.traverse(eye_model, |step| {
             if let Visit::Face(f) = step {
                 let r = &m.bsp.records[f as usize];
-                self.face(r, m.bsp.record_vertices_of(r), &to_eye, eye_model, sun_model);
+                self.face(r, &m.bsp, &to_eye, eye_model, sun_model);
             }
         });
+        // The static tree's numbers again.
+        self.scratch.places.clear();
     }
 
     /// Transforms, culls, clips and sets up one face. `to_eye` takes the face's
-    /// coordinates to the eye's; `eye_local` is the eye in the face's coordinates.
-    fn face(&mut self, face: &FaceRecord, vertices: &[BspVertex], to_eye: &DMat4, eye_local: DVec3, sun: DVec3) {
+    /// coordinates to the eye's; `eye_local` is the eye in the face's coordinates;
+    /// `tree` is the tree it is a record of (its vertices, and their position
+    /// numbers for the [`VertexCache`] if the tree keeps them).
+    fn face(&mut self, face: &FaceRecord, tree: &Bsp, to_eye: &DMat4, eye_local: DVec3, sun: DVec3) {
+        let vertices = tree.record_vertices_of(face);
         let Some(instance_class) = self.f.class[face.instance as usize] else { return };
         let counters = &mut self.counters;
         counters.faces_in += 1;
@@ -945,14 +1019,27 @@ impl FrameBuilder<'_> {
             pb: f64::from(env.background_brightness),
             attenuation: env.attenuation,
         };
-        let eye_vertex = |v: &BspVertex| light.vertex(v);
+        // Each vertex's place (from the cache when its position has one) and light.
+        // The vertices' places from the cache, when the tree numbers them (the
+        // test made once a face: a tree that does not, `many`'s, pays nothing).
+        let ids = if self.f.vertex_cache { tree.record_vertex_ids_of(face) } else { None };
         let (and, or);
         if let ([a, b, c], true) = (vertices, self.f.triangles) {
             // A triangle (nearly every face of `many` and `terrain`): its vertices
             // in registers, and when it lies inside the window (class 1) set up
             // from them with no scratch list: the operations of the general path
             // below, in the same order, without its loops and pushes.
-            let ((a, ca), (b, cb), (c, cc)) = (eye_vertex(a), eye_vertex(b), eye_vertex(c));
+            let ((a, ca), (b, cb), (c, cc)) = match ids {
+                Some(&[i, j, k]) => {
+                    let places = &mut scratch.places;
+                    (
+                        light.cached_vertex(places, i, a),
+                        light.cached_vertex(places, j, b),
+                        light.cached_vertex(places, k, c),
+                    )
+                }
+                _ => (light.vertex(a), light.vertex(b), light.vertex(c)),
+            };
             (and, or) = (ca & cb & cc, ca | cb | cc);
             if and != 0 {
                 counters.outside += 1;
@@ -986,8 +1073,11 @@ impl FrameBuilder<'_> {
             scratch.eye.clear();
             scratch.eye.reserve(vertices.len());
             let (mut all, mut any) = (0x1Fu8, 0u8);
-            for v in vertices {
-                let (e, code) = eye_vertex(v);
+            for (k, v) in vertices.iter().enumerate() {
+                let (e, code) = match ids {
+                    Some(ids) => light.cached_vertex(&mut scratch.places, ids[k], v),
+                    None => light.vertex(v),
+                };
                 all &= code;
                 any |= code;
                 scratch.eye.push(e);
@@ -1067,11 +1157,31 @@ struct Lighting<'a> {
 }
 
 impl Lighting<'_> {
+    /// One vertex's place: its eye-space position and outcode.
+    #[inline(always)]
+    fn place(&self, v: &BspVertex) -> (DVec3, u8) {
+        let p = self.to_eye.transform_point3(v.position);
+        (p, self.view.outcode(p))
+    }
+
     /// One vertex in eye space, lit, and its outcode.
     #[inline(always)]
     fn vertex(&self, v: &BspVertex) -> (EyeVertex, u8) {
-        let p = self.to_eye.transform_point3(v.position);
-        let code = self.view.outcode(p);
+        let (p, code) = self.place(v);
+        (self.lit(v, p), code)
+    }
+
+    /// [`Lighting::vertex`] of the vertex numbered `id` (`v`), its place from
+    /// `places` when there.
+    #[inline(always)]
+    fn cached_vertex(&self, places: &mut VertexCache, id: u32, v: &BspVertex) -> (EyeVertex, u8) {
+        let (p, code) = places.get(id, || self.place(v));
+        (self.lit(v, p), code)
+    }
+
+    /// One vertex in eye space at `p` (its [`Lighting::place`]), lit.
+    #[inline(always)]
+    fn lit(&self, v: &BspVertex, p: DVec3) -> EyeVertex {
         let ambient = self.ambient;
         let cos_a = match self.cos_a {
             Some(c) => c,
@@ -1081,7 +1191,7 @@ impl Lighting<'_> {
         // factor is exp(0) = 1 exactly (z is finite), and not computed.
         let fade = if self.attenuation == 0.0 { 1.0 } else { (-f64::from(self.attenuation) * p.z).exp() };
         let intensity = self.pb + (f64::from(v.intensity) * cos_a - self.pb) * fade;
-        (EyeVertex { position: p, intensity }, code)
+        EyeVertex { position: p, intensity }
     }
 }
 
@@ -1130,7 +1240,8 @@ mod tests {
     use crate::db::builtin;
 
     /// The GP's shortcuts (passing over the subtrees outside the view volume, and
-    /// over the guests' places when there are none; the path for triangles) change
+    /// over the guests' places when there are none; the path for triangles; the
+    /// cache of shared vertices' places) change
     /// neither the frame list (polygons, vertices, edge codes, texture set-ups) nor
     /// a counter: built-in scenes with and without light points and moving models,
     /// textured and not, of triangles (terrain) and other polygons, eyes turned
@@ -1146,7 +1257,7 @@ mod tests {
             state ^= state << 17;
             lo + (hi - lo) * (state >> 40) as f32 / (1u64 << 24) as f32
         };
-        let (mut culled_some, mut multiple_stretches) = (false, false);
+        let (mut culled_some, mut multiple_stretches, mut numbered) = (false, false, false);
         // Triangles set up, texture set-ups, faces clipped by the window and by the
         // near plane.
         let mut seen = [0usize; 4];
@@ -1154,6 +1265,19 @@ mod tests {
         for (name, eyes) in [("default", 16), ("city", 16), ("terrain", 6)] {
             let db = Database::new(builtin::scene(name).expect("built-in"));
             let screen = Screen { width: 320, height: 200 };
+            // Vertices with one position number have one position (then the
+            // cache's places are theirs), and terrain's grid is numbered.
+            if let Some(ids) = db.bsp.records.first().and_then(|r| db.bsp.record_vertex_ids_of(r)) {
+                numbered |= !ids.is_empty();
+                let mut at = std::collections::HashMap::new();
+                for r in &db.bsp.records {
+                    let ids = db.bsp.record_vertex_ids_of(r).expect("numbered tree");
+                    for (v, &id) in db.bsp.record_vertices_of(r).iter().zip(ids) {
+                        let p = v.position.to_array().map(f64::to_bits);
+                        assert_eq!(*at.entry(id).or_insert(p), p, "{name}: position number {id}");
+                    }
+                }
+            }
             for k in 0..eyes {
                 let mut eye = db.scene.eye;
                 if k > 0 {
@@ -1222,6 +1346,7 @@ mod tests {
         }
         assert!(culled_some, "no subtree was culled: the test tests nothing");
         assert!(multiple_stretches, "never more than one stretch: the test tests nothing");
+        assert!(numbered, "no tree numbers its vertices: the cache is not tested");
         assert!(seen.iter().all(|&k| k > 20), "every kind of face tested: {seen:?}");
     }
 }
