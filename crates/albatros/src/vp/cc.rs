@@ -26,9 +26,12 @@
 //! the whole cell as one group of 16 (on Zen 4 the cell's operations are one chain
 //! of dependent steps rather than two: shade's share of a default frame's time 14 %
 //! lower than AVX2's one half after the other). The map's four texels of a bilinear
-//! look-up are one 4-byte read ([`super::texture`]'s pair layout), a gather; the
-//! TAC's ROM entries `k` and `k + 1` one 8-byte read, by gathers in the AVX-512 copy
-//! and by scalar loads in the AVX2 copy (Zen 3's gathers cost more). Rust neither
+//! look-up are one 4-byte read ([`super::texture`]'s pair layout), a gather, which
+//! the AVX2 copy starts at the level the footprint's exponent gives and checks
+//! against the ROM's level after (the look-up's chain, the cell's longest, no
+//! longer waits for the `log2` ROM); the TAC's ROM entries `k` and `k + 1` one
+//! 8-byte read, by gathers in the AVX-512 copy and by scalar loads in the AVX2
+//! copy (Zen 3's gathers cost more). Rust neither
 //! fuses nor reorders float operations, and each copy does the same operations in
 //! the same order, so the bits are the same; the tests compare every copy the
 //! processor can run with the plain per-pixel definition.

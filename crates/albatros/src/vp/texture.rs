@@ -312,38 +312,56 @@ impl TextureMap {
     /// [`Self::sample_lanes`] of eight pixels in AVX2 registers, bit for bit: the
     /// same operations in the same order, the TAC's `log2` ROM by
     /// [`TacRom::log2_avx2`] and the four texels `T1..T4` by one gather of
-    /// 4-byte reads of the pair layout per level.
+    /// 4-byte reads of the pair layout per level. The finer level's look-up is
+    /// started at the level the footprint's exponent gives ([`Level::guess`]),
+    /// checked against the ROM's level after.
     #[target_feature(enable = "avx2")]
     #[inline]
     pub(crate) fn sample_avx2(&self, u: __m256, v: __m256, footprint: __m256) -> __m256 {
-        let (k, kr, fu, fv) = self.level_avx2(u, v, footprint);
-        let fine = self.bilinear_avx2(k, fu, fv);
+        let level = self.level_avx2(u, v, footprint);
+        let fine = self.bilinear_avx2(level.guess, level.fu, level.fv);
+        let (k, fine) = if _mm256_movemask_epi8(_mm256_cmpeq_epi32(level.guess, level.k)) == -1 {
+            (level.guess, fine)
+        } else {
+            (level.k, self.bilinear_avx2(level.k, level.fu, level.fv))
+        };
+        let kr = level.kr;
         // `kr == 0` in every lane (either zero's sign: `kr` is never NaN).
         if _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_NEQ_UQ>(kr, _mm256_setzero_ps())) == 0 {
             return fine;
         }
         let k = self.coarser_avx2(k);
-        let coarse = self.bilinear_avx2(k, fu, fv);
+        let coarse = self.bilinear_avx2(k, level.fu, level.fv);
         _mm256_add_ps(fine, _mm256_mul_ps(kr, _mm256_sub_ps(coarse, fine)))
     }
 
     /// [`Self::sample_avx2`] of two groups of eight pixels side by side (a whole
     /// cell), bit for bit: each step done for both before the next, so that the
-    /// two chains of dependent operations overlap, and one test of both groups'
-    /// `kr` for the coarser level.
+    /// two chains of dependent operations overlap, one test of both groups'
+    /// guessed levels and one of both groups' `kr` for the coarser level.
     #[target_feature(enable = "avx2")]
     #[inline]
     pub(crate) fn sample2_avx2(&self, u: [__m256; 2], v: [__m256; 2], footprint: [__m256; 2]) -> [__m256; 2] {
-        let (k0, kr0, fu0, fv0) = self.level_avx2(u[0], v[0], footprint[0]);
-        let (k1, kr1, fu1, fv1) = self.level_avx2(u[1], v[1], footprint[1]);
-        let fine = [self.bilinear_avx2(k0, fu0, fv0), self.bilinear_avx2(k1, fu1, fv1)];
+        let level = [self.level_avx2(u[0], v[0], footprint[0]), self.level_avx2(u[1], v[1], footprint[1])];
+        let fine = level.each_ref().map(|l| self.bilinear_avx2(l.guess, l.fu, l.fv));
+        let guessed = _mm256_and_si256(
+            _mm256_cmpeq_epi32(level[0].guess, level[0].k),
+            _mm256_cmpeq_epi32(level[1].guess, level[1].k),
+        );
+        let (k, fine) = if _mm256_movemask_epi8(guessed) == -1 {
+            ([level[0].guess, level[1].guess], fine)
+        } else {
+            ([level[0].k, level[1].k], level.each_ref().map(|l| self.bilinear_avx2(l.k, l.fu, l.fv)))
+        };
+        let (kr0, kr1) = (level[0].kr, level[1].kr);
         let zero = _mm256_setzero_ps();
         let blends = _mm256_or_ps(_mm256_cmp_ps::<_CMP_NEQ_UQ>(kr0, zero), _mm256_cmp_ps::<_CMP_NEQ_UQ>(kr1, zero));
         if _mm256_movemask_ps(blends) == 0 {
             return fine;
         }
-        let (k0, k1) = (self.coarser_avx2(k0), self.coarser_avx2(k1));
-        let coarse = [self.bilinear_avx2(k0, fu0, fv0), self.bilinear_avx2(k1, fu1, fv1)];
+        let (k0, k1) = (self.coarser_avx2(k[0]), self.coarser_avx2(k[1]));
+        let coarse =
+            [self.bilinear_avx2(k0, level[0].fu, level[0].fv), self.bilinear_avx2(k1, level[1].fu, level[1].fv)];
         [
             _mm256_add_ps(fine[0], _mm256_mul_ps(kr0, _mm256_sub_ps(coarse[0], fine[0]))),
             _mm256_add_ps(fine[1], _mm256_mul_ps(kr1, _mm256_sub_ps(coarse[1], fine[1]))),
@@ -351,10 +369,11 @@ impl TextureMap {
     }
 
     /// The level `k`, the blend `kr` to the next and the fractional parts of `u`,
-    /// `v` of eight pixels ([`Self::sample_lanes`] up to its first look-up).
+    /// `v` of eight pixels ([`Self::sample_lanes`] up to its first look-up), and
+    /// the guess of `k` from the footprint's exponent ([`Level::guess`]).
     #[target_feature(enable = "avx2")]
     #[inline]
-    fn level_avx2(&self, u: __m256, v: __m256, footprint: __m256) -> (__m256i, __m256, __m256, __m256) {
+    fn level_avx2(&self, u: __m256, v: __m256, footprint: __m256) -> Level {
         let n = self.log2_side;
         // Level of detail ([`Self::lod`], [`lod_of_texels`]).
         let (side, top, beyond) = (self.side() as f32, n as f32, (2u32 << n) as f32);
@@ -370,7 +389,12 @@ impl TextureMap {
         let floor = _mm256_floor_ps(lod);
         let kr = _mm256_sub_ps(lod, floor);
         let k = small_int_avx2(floor);
-        (k, kr, fract01_avx2(u), fract01_avx2(v))
+        // The exponent of `texels` (biased: 0 to 255 for any bits but the sign's),
+        // clamped to `0..=n`.
+        let biased = _mm256_and_si256(_mm256_srli_epi32::<23>(_mm256_castps_si256(texels)), _mm256_set1_epi32(0xFF));
+        let exponent = _mm256_sub_epi32(biased, _mm256_set1_epi32(127));
+        let guess = _mm256_min_epi32(_mm256_max_epi32(exponent, _mm256_setzero_si256()), _mm256_set1_epi32(n as i32));
+        Level { guess, k, kr, fu: fract01_avx2(u), fv: fract01_avx2(v) }
     }
 
     /// Level `k + 1`, or `k` again at the last level (where `kr` is 0 and the
@@ -509,6 +533,27 @@ impl TextureMap {
         let value = _mm512_add_ps(_mm512_mul_ps(nku, left), _mm512_mul_ps(ku, right));
         _mm512_div_ps(value, _mm512_set1_ps(TEXEL_ONE))
     }
+}
+
+/// [`TextureMap::level_avx2`]'s values of eight pixels.
+#[cfg(target_arch = "x86_64")]
+struct Level {
+    /// The level `floor(lod)` ([`TextureMap::trilinear`]'s `k`).
+    k: __m256i,
+    /// `k` as the exponent of the footprint in level-0 texels gives it, clamped to
+    /// `0..=n`: `k` itself but where the `log2` ROM's fraction of the mantissa,
+    /// added to the exponent, rounds up to the next integer (the ROM's last
+    /// entry, a 256th of each octave), and in lanes with no real footprint (NaN,
+    /// negative). Ready some 20 cycles before `k` (no ROM read, no `floor`), so
+    /// that the finer level's look-up, the longest chain of the colour computers,
+    /// starts that much sooner; `k` checks it after (no look-up again in
+    /// default's or city's frames).
+    guess: __m256i,
+    /// The blend `kr` to level `k + 1`.
+    kr: __m256,
+    /// The fractional parts of `u` and `v`.
+    fu: __m256,
+    fv: __m256,
 }
 
 /// [`fract01`] of sixteen values in an AVX-512 register.
@@ -1194,6 +1239,71 @@ mod tests {
                 check_sampling(&map, &[0.3; 8], &edge, &fp);
             }
         }
+    }
+
+    /// The AVX2 copy's guess of the level ([`Level::guess`]) is the level but in
+    /// the cases it documents, among them footprints just below a power of two
+    /// texels, where the `log2` ROM rounds up (the look-up again, which
+    /// [`cell_sampling_is_sampling_bit_for_bit`] checks bit for bit, is taken
+    /// there).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn guessed_level_is_the_level_but_where_the_rom_rounds_up() {
+        #[target_feature(enable = "avx2")]
+        #[allow(unsafe_code, reason = "stores of registers into arrays of their size")]
+        fn levels(map: &TextureMap, texels: &[f32; 8]) -> ([i32; 8], [i32; 8]) {
+            let footprint: [f32; 8] = std::array::from_fn(|l| texels[l] / map.side() as f32);
+            let (mut guess, mut k) = ([0i32; 8], [0i32; 8]);
+            // SAFETY: each array is 8 `f32` or `i32`, the 32 bytes each load or
+            // store touches.
+            unsafe {
+                let zero = _mm256_setzero_ps();
+                let level = map.level_avx2(zero, zero, _mm256_loadu_ps(footprint.as_ptr()));
+                _mm256_storeu_si256(guess.as_mut_ptr().cast(), level.guess);
+                _mm256_storeu_si256(k.as_mut_ptr().cast(), level.k);
+            }
+            (guess, k)
+        }
+        if !std::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let map = builtin("grass").unwrap();
+        let n = map.log2_side() as i32;
+        let (mut same, mut rounded_up) = (0, 0);
+        let mut texels = 1e-3f32;
+        while texels < 1e4 {
+            let x: [f32; 8] = std::array::from_fn(|l| texels * (1.0 + l as f32 * 1e-4));
+            // SAFETY: the processor has AVX2.
+            #[allow(unsafe_code, reason = "a test of the AVX2 copy, after detection")]
+            let (guess, k) = unsafe { levels(&map, &x) };
+            for l in 0..8 {
+                let bits = x[l].to_bits();
+                let exponent = (bits >> 23) as i32 - 127;
+                if guess[l] == k[l] {
+                    same += 1;
+                } else {
+                    // Only where the ROM's fraction rounds up: its last entry,
+                    // below a level, and one level up.
+                    assert_eq!(bits >> 15 & 0xFF, 0xFF, "{}", x[l]);
+                    assert!((0..n).contains(&exponent) && k[l] == exponent + 1, "{}", x[l]);
+                    rounded_up += 1;
+                }
+            }
+            texels *= 1.000_9;
+        }
+        // Just below each power of two texels up to the top level.
+        for e in 1..=n {
+            let x = [f32::from_bits((e as f32).exp2().to_bits() - 1); 8];
+            // SAFETY: the processor has AVX2.
+            #[allow(unsafe_code, reason = "a test of the AVX2 copy, after detection")]
+            let (guess, k) = unsafe { levels(&map, &x) };
+            // `e - 1` plus a fraction a few of its ulps below 1, which rounds
+            // up from some `e` on.
+            assert_eq!(guess[0], e - 1, "just below 2^{e} texels");
+            assert!(k[0] == e - 1 || k[0] == e, "just below 2^{e} texels");
+            rounded_up += usize::from(k[0] == e);
+        }
+        assert!(same > 100_000 && rounded_up >= 4, "{same} {rounded_up}");
     }
 
     /// The pair layout holds, at pair `(r, c)` of each level, texels `(c, r)` and
