@@ -16,6 +16,9 @@
 //!   where the descent started; decisions are sound for the SPP table, so the level at
 //!   which an edge is decided, and whether a mask dropped a cell early, never changes
 //!   which subpixels a polygon gets. **Masks change work, never the image.**
+//! - With counting off, a cell beyond a polygon's sharp vertex, where its two edges'
+//!   lines have crossed by a step of the SPP's rounding, is dropped although each
+//!   edge alone crosses it ([`band_closed`]): its codes would all be empty.
 //! - No allocation per polygon or per cell: active-edge lists live in per-level scratch
 //!   vectors owned by the [`CellProcessors`]; one pass over a cell's edges fills its
 //!   four children's lists.
