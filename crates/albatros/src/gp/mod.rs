@@ -1019,9 +1019,9 @@ impl FrameBuilder<'_> {
             pb: f64::from(env.background_brightness),
             attenuation: env.attenuation,
         };
-        // Each vertex's place (from the cache when its position has one) and light.
-        // The vertices' places from the cache, when the tree numbers them (the
-        // test made once a face: a tree that does not, `many`'s, pays nothing).
+        // The vertices' places from the cache when the tree numbers them (the test
+        // made once a face: a tree that does not, `many`'s, pays nothing); their
+        // light always per face.
         let ids = if self.f.vertex_cache { tree.record_vertex_ids_of(face) } else { None };
         let (and, or);
         if let ([a, b, c], true) = (vertices, self.f.triangles) {

@@ -851,8 +851,10 @@ fn exact_into_sse2(
 /// Whether one of the edge's endpoints lies within [`VERTEX_MARGIN`] of the square of
 /// `side` pixels at pixel `(px, py)`: whether any pixel there is one of the edge's
 /// vertex pixels ([`vertex_pixels`]), for a cell of any level (the GQ's
-/// [`band_closed`](super::gq) leaves those to the SPPs; [`near_end_cell`] is the last
-/// level's, in the SPPs' hot loop).
+/// [`band_closed`](super::gq) leaves those to the SPPs). Per coordinate
+/// `x0 <= e <= x0 + span` as one unsigned compare of `e - x0` (in `i64`: no wrap),
+/// both endpoints without a branch.
+#[inline(always)]
 pub fn ends_near(line: &ExactLine, px: u32, py: u32, side: u32) -> bool {
     let span = (i64::from(side) * i64::from(SNAP_ONE) + 2 * i64::from(VERTEX_MARGIN)) as u64;
     let x0 = i64::from(px) * i64::from(SNAP_ONE) - i64::from(VERTEX_MARGIN);
@@ -861,16 +863,11 @@ pub fn ends_near(line: &ExactLine, px: u32, py: u32, side: u32) -> bool {
     within(line.ends[0]) | within(line.ends[1])
 }
 
-/// Whether one of the edge's endpoints lies within [`VERTEX_MARGIN`] of the 4x4 cell
-/// at pixel `(px, py)`: per coordinate `x0 <= e <= x0 + span` as one unsigned compare
-/// of `e - x0` (in `i64`: no wrap), both endpoints without a branch.
+/// [`ends_near`] of the 4x4 cell at pixel `(px, py)`: whether the cell has a vertex
+/// pixel of the edge.
 #[inline(always)]
 fn near_end_cell(line: &ExactLine, px: u32, py: u32) -> bool {
-    const SPAN: u64 = (CELL_SIDE as i32 * SNAP_ONE + 2 * VERTEX_MARGIN) as u64;
-    let x0 = i64::from(px) * i64::from(SNAP_ONE) - i64::from(VERTEX_MARGIN);
-    let y0 = i64::from(py) * i64::from(SNAP_ONE) - i64::from(VERTEX_MARGIN);
-    let within = |(ex, ey): (i32, i32)| ((i64::from(ex) - x0) as u64 <= SPAN) & ((i64::from(ey) - y0) as u64 <= SPAN);
-    within(line.ends[0]) | within(line.ends[1])
+    ends_near(line, px, py, CELL_SIDE)
 }
 
 /// [`near_end_cell`] in SSE2, the four coordinates at once: each `e - x0`, biased by
