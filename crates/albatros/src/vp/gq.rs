@@ -436,7 +436,13 @@ pub struct Fragment<'a> {
     /// every fragment of [`CellProcessors::descend`]; a fragment of several cells
     /// (siblings wholly inside, no active edge) saves the sink a call per cell.
     pub cells: u8,
+    /// The polygon's box, `[x0, x1) x [y0, y1)` in pixels ([`GqPolygon::bbox`]): the
+    /// SPPs clip the code to it ([`super::spp::box_pixels`]).
+    pub bbox: [u32; 4],
 }
+
+/// A [`Fragment::bbox`] that clips nothing.
+pub const NO_BOX: [u32; 4] = [0, u32::MAX, 0, u32::MAX];
 
 /// [`Fragment::cells`] of a fragment of the one cell at its `(px, py)`.
 pub const ONE_CELL: u8 = 1;
@@ -670,24 +676,133 @@ impl CellProcessors {
                 rec.push((start, CellKind::Start));
             }
         }
-        let side = i64::from(self.side(start.level));
-        let (x0, y0) = (i64::from(start.x) * side, i64::from(start.y) * side);
         let n = poly.edges.len();
         if n > self.stride {
             self.stride = n.next_power_of_two();
             self.lists.resize(4 * self.stride * (self.root_level as usize + 1), ActiveEdge::EMPTY);
         }
+        if FILL && self.start_at_size(start, poly, counters, spp) {
+            return;
+        }
+        let side = i64::from(self.side(start.level));
+        let (x0, y0) = (i64::from(start.x) * side, i64::from(start.y) * side);
         let first = 4 * self.stride * start.level as usize;
         let list = &mut self.lists[first..first + n];
         for (i, (a, e)) in list.iter_mut().zip(poly.edges).enumerate() {
             *a = ActiveEdge::at_cell(i as u32, e, x0, y0, side);
         }
         if start.level == self.root_level {
-            spp(Fragment { px: start.x * 4, py: start.y * 4, active: &self.lists[first..first + n], cells: ONE_CELL });
+            spp(Fragment {
+                px: start.x * 4,
+                py: start.y * 4,
+                active: &self.lists[first..first + n],
+                cells: ONE_CELL,
+                bbox: poly.bbox,
+            });
             return;
         }
         let half = 1i64 << (EDGE_FRAC_BITS + (self.root_level + 1 - start.level));
         self.split::<STATS, FILL>(start, start_z, first, n, half, poly, counters, spp);
+    }
+
+    /// The level of a box's size (`bbox`, not empty): the deepest level at most L - 1
+    /// whose cells it spans at most two of each way. Not deeper than L - 1 (8 pixel
+    /// cells), whose split hands the SPPs only the edges crossing each last-level
+    /// cell.
+    fn size_level(&self, bbox: [u32; 4]) -> u32 {
+        let [x0, x1, y0, y1] = bbox;
+        let (x1, y1) = (x1 - 1, y1 - 1);
+        // Cells of `2^shift` pixels.
+        let mut shift = 3;
+        while (x1 >> shift) - (x0 >> shift) > 1 || (y1 >> shift) - (y0 >> shift) > 1 {
+            shift += 1;
+        }
+        (self.root_level + 2).saturating_sub(shift)
+    }
+
+    /// The filling descent's start at the cells of the polygon's size: the at most
+    /// 2 x 2 cells of the deepest level above the last whose cells the box
+    /// (`poly.bbox`) spans at most two of each way, when that level lies two or more
+    /// below the bounding cell `start` (else returns `false`, and the descent starts
+    /// at `start`). A polygon whose box straddles a border of a large cell (a tenth
+    /// of `many`'s triangles start at levels 0-2, 3-9 levels above their size) is
+    /// otherwise split level by level down through cells it barely touches.
+    ///
+    /// The same subpixels as the descent from `start`: every cell the box meets lies
+    /// in these cells, the SPPs clip each code to the box
+    /// ([`super::spp::box_pixels`]), and a cell's descent depends only on its active
+    /// edges (here the polygon's every edge: one that crosses no ancestor codes its
+    /// children all IN or all OUT, as at the ancestor, and only crossing edges go on
+    /// to the children's lists) and on the mask memories, read here for the levels
+    /// between, as the splits would. Cells the box does not meet are not descended:
+    /// their codes clip to nothing. The cells go in Z order, as the descent visits
+    /// them, and a cell wholly inside is marked and filled as its parent's split
+    /// would: the same marks.
+    #[inline(always)]
+    fn start_at_size(
+        &mut self,
+        start: Cell,
+        poly: &GqPolygon,
+        counters: &mut Counters,
+        spp: &mut impl FnMut(Fragment),
+    ) -> bool {
+        if start.level + 2 >= self.root_level {
+            return false;
+        }
+        let level = self.size_level(poly.bbox);
+        if level < start.level + 2 {
+            return false;
+        }
+        let [bx0, bx1, by0, by1] = poly.bbox;
+        let (bx1, by1) = (bx1 - 1, by1 - 1);
+        let shift = self.root_level + 2 - level;
+        let (cx0, cy0) = (bx0 >> shift, by0 >> shift);
+        let mut cells = [(0usize, Cell { level, x: 0, y: 0 }); 4];
+        let mut count = 0;
+        for y in cy0..=by1 >> shift {
+            for x in cx0..=bx1 >> shift {
+                cells[count] = (morton(x, y), Cell { level, x, y });
+                count += 1;
+            }
+        }
+        // Z order: of a 2 x 2 block straddling a border, the left column comes first
+        // (for a vertical border) or the top row (a horizontal one).
+        let cells = &mut cells[..count];
+        cells.sort_unstable_by_key(|c| c.0);
+        let side = i64::from(self.side(level));
+        let half = 1i64 << (EDGE_FRAC_BITS + (self.root_level + 1 - level));
+        let first = 4 * self.stride * level as usize;
+        let n = poly.edges.len();
+        'cells: for &(z, cell) in cells.iter() {
+            for k in start.level + 1..=level {
+                if self.masks.has(k) && self.memories[k as usize].get_z(z >> (2 * (level - k))) {
+                    continue 'cells;
+                }
+            }
+            let (x0, y0) = (i64::from(cell.x) * side, i64::from(cell.y) * side);
+            // IN for every edge (as its parent's split would code it: the line at
+            // or before the cell's near border on the polygon's side, at or beyond
+            // its far one on the other; V is exact at cell borders, so the same).
+            let mut inside = true;
+            for (i, (a, e)) in self.lists[first..first + n].iter_mut().zip(poly.edges).enumerate() {
+                *a = ActiveEdge::at_cell(i as u32, e, x0, y0, side);
+                inside &= if a.lr() { a.v1.0.max(a.v2.0) <= 0 } else { a.v1.0.min(a.v2.0) >= 2 * half };
+            }
+            if inside {
+                // As `split_step` does with a child wholly inside.
+                if poly.opaque && self.masks.has(level) {
+                    self.memories[level as usize].set_z(z);
+                }
+                if self.hierarchical && poly.opaque {
+                    self.inside[level as usize].push(z);
+                    self.queued |= 1 << level;
+                }
+                self.fill(cell, z, poly.opaque, spp);
+                continue;
+            }
+            self.split::<false, true>(cell, z, first, n, half, poly, counters, spp);
+        }
+        true
     }
 
     /// One GQ step: splits `cell` (Z-order index `z`, its `len` active edges at `list`
@@ -807,7 +922,7 @@ impl CellProcessors {
                 }
                 if LAST || child_level == self.root_level {
                     // In the descent's order, cell by cell (this cell of the parent).
-                    spp(Fragment { px: cell.x * 8, py: cell.y * 8, active: &[], cells: 1 << c });
+                    spp(Fragment { px: cell.x * 8, py: cell.y * 8, active: &[], cells: 1 << c, bbox: poly.bbox });
                 } else {
                     self.fill(child_cell, 4 * z + c as usize, poly.opaque, spp);
                 }
@@ -825,6 +940,7 @@ impl CellProcessors {
                     py: child_cell.y * 4,
                     active: &self.lists[block + start..block + end],
                     cells: ONE_CELL,
+                    bbox: poly.bbox,
                 });
             } else if child_level + 1 == self.root_level {
                 self.split_step::<STATS, FILL, true>(
@@ -865,7 +981,7 @@ impl CellProcessors {
         }
         if child_level == self.root_level {
             if todo != 0 {
-                spp(Fragment { px: cell.x * 8, py: cell.y * 8, active: &[], cells: todo });
+                spp(Fragment { px: cell.x * 8, py: cell.y * 8, active: &[], cells: todo, bbox: NO_BOX });
             }
             return;
         }
@@ -1195,6 +1311,30 @@ mod tests {
         }
     }
 
+    /// The SPPs' window on a polygon's box ([`box_pixels`](super::super::spp::box_pixels)) is
+    /// the cell's pixels inside the box, pixel by pixel: boxes around, across and
+    /// inside a cell, empty and not, near the screen's origin and far from it.
+    #[test]
+    fn box_pixels_are_the_pixels_in_the_box() {
+        use super::super::spp::box_pixels;
+        for (px, py) in [(0u32, 0u32), (4, 8), (1000, 516)] {
+            for x0 in px.saturating_sub(2)..px + 7 {
+                for x1 in x0..px + 8 {
+                    for (y0, y1) in [(0, u32::MAX), (py + 1, py + 3), (py, py + 4), (py + 3, py + 9), (py + 5, py + 9)]
+                    {
+                        let bbox = [x0, x1, y0, y1];
+                        let want = (0..16).fold(0u16, |w, i| {
+                            let (x, y) = (px + (i & 3), py + (i >> 2));
+                            w | u16::from(x >= x0 && x < x1 && y >= y0 && y < y1) << i
+                        });
+                        assert_eq!(box_pixels(px, py, bbox), want, "cell ({px}, {py}), box {bbox:?}");
+                    }
+                }
+            }
+        }
+        assert_eq!(box_pixels(8, 4, NO_BOX), 0xFFFF);
+    }
+
     /// The plain descent, the GQ's definition before its optimisations: lists in
     /// vectors, pushed per crossed child, the codes by [`edge_code`] (tested against
     /// the ROM), every edge to the end, no mask; the last-level cells with their
@@ -1284,8 +1424,9 @@ mod tests {
     /// every child is OUT) reaches the cells the plain descent does, with the same
     /// active edges, in the same order: random triangles, slivers and tiny ones
     /// among them, on a square screen (no cell pre-masked), no mask in use. The
-    /// filling descent reaches them too, but for closed bands ([`band_closed`]) whose
-    /// codes are empty.
+    /// filling descent reaches them too, but for closed bands ([`band_closed`]) and
+    /// the cells a start at the polygon's size leaves out
+    /// ([`CellProcessors::start_at_size`]), whose codes clipped to the box are empty.
     #[test]
     fn descent_is_the_plain_descent() {
         const SIDE: u32 = 256;
@@ -1298,7 +1439,7 @@ mod tests {
             state ^= state << 17;
             state % n
         };
-        let (mut checked, mut dropped) = (0, 0);
+        let (mut checked, mut dropped, mut sized) = (0, 0, 0);
         for k in 0..3000 {
             let Some((edges, bbox, p)) = random_triangle(k, root_side, &mut next) else {
                 continue;
@@ -1333,23 +1474,40 @@ mod tests {
                 .collect();
             let mut want = Vec::new();
             plain_descent(gq.root_level, start, active, &mut want);
+            if start.level + 2 < gq.root_level && gq.size_level(bbox) >= start.level + 2 {
+                sized += 1;
+            }
             assert_eq!(got, want, "triangle {p:?}");
             assert_eq!(counted, want, "counting, triangle {p:?}");
-            dropped += filled_drops_only_empty(&filled, &want, &edges, &format!("triangle {p:?}"));
+            dropped += filled_drops_only_empty(&filled, &want, &edges, bbox, &format!("triangle {p:?}"));
             checked += 1;
         }
         assert!(checked > 2500);
-        // Not vacuous: the filling descent drops closed bands.
+        // Not vacuous: the filling descent drops closed bands, and cells the box
+        // clips out.
         assert!(dropped > 1000, "{dropped}");
+        // Hundreds start at the cells of their size (988 of them), and some of the
+        // cells those descents leave out hold subpixels of the row tables' AND past
+        // the box (134, over the three modes): without the clip they would be lost.
+        assert!(sized > 500, "{sized}");
+        assert!(STRAY.with(|s| s.get()) > 20);
+    }
+
+    std::thread_local! {
+        /// Cells [`filled_drops_only_empty`] saw dropped whose codes are empty only
+        /// by the clip to the polygon's box (per SPP mode).
+        static STRAY: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
     }
 
     /// The filling descent's fragments `filled` are the plain descent's `want`, in the
-    /// same order, less some whose codes are empty in every SPP mode (the cells
-    /// [`band_closed`] drops): returns how many.
+    /// same order, less some whose codes (clipped to `bbox`) are empty in every SPP
+    /// mode (the cells [`band_closed`] drops, and those outside the cells a start at
+    /// the polygon's size descends): returns how many.
     fn filled_drops_only_empty(
         filled: &[(u32, u32, Vec<ActiveEdge>)],
         want: &[(u32, u32, Vec<ActiveEdge>)],
         edges: &[EdgeCode],
+        bbox: [u32; 4],
         what: &str,
     ) -> usize {
         use super::super::spp::SubpixelProcessors;
@@ -1363,10 +1521,14 @@ mod tests {
                 rest.next();
                 continue;
             }
-            let frag = Fragment { px: w.0, py: w.1, active: &w.2, cells: ONE_CELL };
+            let frag = Fragment { px: w.0, py: w.1, active: &w.2, cells: ONE_CELL, bbox };
             for spp in &spps {
                 let code = spp.fragment_code::<false>(&frag, edges, &mut counters);
                 assert_eq!(code, [0; 16], "{what}: {:?} dropped the cell ({}, {}) of {:?}", spp.mode, w.0, w.1, w.2);
+                let unclipped = spp.fragment_code::<false>(&Fragment { bbox: NO_BOX, ..frag }, edges, &mut counters);
+                if unclipped != [0; 16] {
+                    STRAY.with(|s| s.set(s.get() + 1));
+                }
             }
             dropped += 1;
         }
@@ -1419,7 +1581,7 @@ mod tests {
                 }
             });
             assert_eq!(counted, want, "counting, triangle {k} {p:?}");
-            filled_drops_only_empty(&filled, &want, &edges, &format!("triangle {k} {p:?}"));
+            filled_drops_only_empty(&filled, &want, &edges, bbox, &format!("triangle {k} {p:?}"));
             for level in 1..=off.root_level as usize {
                 assert_eq!(on.memories[level].bits, off.memories[level].bits, "level {level}, triangle {k}");
                 assert_eq!(filling.memories[level].bits, off.memories[level].bits, "level {level}, triangle {k}");

@@ -27,6 +27,35 @@ pub const CELL_SIDE: u32 = 4;
 /// A full pixel: all 16 subpixels.
 pub const FULL: u16 = 0xFFFF;
 
+/// The pixels of the 4 x 4 cell at pixel `(px, py)` inside the box `[x0, x1) x
+/// [y0, y1)` (`bbox`, as [`super::bbox`] gives it): bit `4 y + x`.
+///
+/// The BP's box as a window on the SPPs' codes: no subpixel outside a polygon's
+/// box (its vertices' box widened by a pixel each way) is the polygon's. Without
+/// it, beyond a sliver's acute tip the row tables' sets of the two edges can AND to
+/// a few subpixels more than a pixel past the box (where the two edges' rounded
+/// positions are within a step of `q` on a pixel line but not on the same table
+/// entry), in cells only a descent from the polygon's bounding cell reaches: the
+/// image then depended on where the bounding cell's borders happened to lie, and
+/// descents could not start at the cells of the polygon's size
+/// ([`super::gq::CellProcessors::descend_filling`]). Two comparisons per border in
+/// hardware; here most fragments lie inside their box and skip the clip.
+#[inline]
+pub fn box_pixels(px: u32, py: u32, bbox: [u32; 4]) -> u16 {
+    let [x0, x1, y0, y1] = bbox;
+    if px >= x0 && px + CELL_SIDE <= x1 && py >= y0 && py + CELL_SIDE <= y1 {
+        return ALL_PIXELS;
+    }
+    // The cell's pixels `lo..hi` (each in 0..=4) along one axis inside `[a, b)`, as
+    // bits of `unit` each (1 for columns, 4 for rows: a row is 4 bits of the code).
+    let span = |p: u32, a: u32, b: u32, unit: u32| {
+        let (lo, hi) = (a.saturating_sub(p).min(CELL_SIDE) * unit, b.saturating_sub(p).min(CELL_SIDE) * unit);
+        ((1u32 << hi) - 1) & !((1u32 << lo) - 1)
+    };
+    // The columns repeated in every row, ANDed with the rows' nibbles.
+    ((span(px, x0, x1, 1) * 0x1111) & span(py, y0, y1, 4)) as u16
+}
+
 /// The visible part of a polygon in one cell, handed to the colour computers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Visible {
@@ -251,7 +280,8 @@ impl SubpixelProcessors {
     }
 
     /// The fragment's code: per pixel, the AND over the crossing edges of their
-    /// subpixel sets (no masking). Only the dispatch is inlined: the copies it calls
+    /// subpixel sets (no masking), clipped to the polygon's box ([`box_pixels`]).
+    /// Only the dispatch is inlined: the copies it calls
     /// are kept out of line (inlined into the counting variant of the VP's loop, the
     /// code made that loop's code larger and the counters' cost several times their
     /// work), and a call of the AVX2 copy from an out-of-line dispatch cost some 36
@@ -263,6 +293,21 @@ impl SubpixelProcessors {
         edges: &[EdgeCode],
         counters: &mut Counters,
     ) -> [u16; 16] {
+        let mut code = self.edge_code::<STATS>(frag, edges, counters);
+        let window = box_pixels(frag.px, frag.py, frag.bbox);
+        if window != ALL_PIXELS {
+            // Branch-free, so that it vectorises: each pixel's set ANDed with all ones
+            // or none.
+            for (pixel, c) in code.iter_mut().enumerate() {
+                *c &= 0u16.wrapping_sub(window >> pixel & 1);
+            }
+        }
+        code
+    }
+
+    /// [`Self::fragment_code`] before the clip to the box: the AND over the edges.
+    #[inline(always)]
+    fn edge_code<const STATS: bool>(&self, frag: &Fragment, edges: &[EdgeCode], counters: &mut Counters) -> [u16; 16] {
         if self.mode == SppMode::Exact {
             return self.fragment_code_exact::<STATS>(frag, edges, counters);
         }
@@ -1541,7 +1586,8 @@ mod tests {
                 .enumerate()
                 .map(|(i, e)| ActiveEdge::at_cell(i as u32, e, i64::from(px), i64::from(py), 4))
                 .collect();
-            let frag = Fragment { px, py, active: &active, cells: super::super::gq::ONE_CELL };
+            let frag =
+                Fragment { px, py, active: &active, cells: super::super::gq::ONE_CELL, bbox: super::super::gq::NO_BOX };
             let want = fragment_code_plain(&spp, &frag, &edges);
             let got = spp.fragment_code::<false>(&frag, &edges, &mut Counters::new(level));
             assert_eq!(got, want, "case {k}: mode {mode:?}, cell ({px}, {py}), edges {edges:?}");
@@ -1790,7 +1836,8 @@ mod tests {
                 .enumerate()
                 .map(|(i, e)| ActiveEdge::at_cell(i as u32, e, i64::from(px), i64::from(py), 4))
                 .collect();
-            let frag = Fragment { px, py, active: &active, cells: super::super::gq::ONE_CELL };
+            let frag =
+                Fragment { px, py, active: &active, cells: super::super::gq::ONE_CELL, bbox: super::super::gq::NO_BOX };
             let mut counters = Counters::new(3);
             let want = spp.fragment_code::<false>(&frag, &edges, &mut counters);
             let got = spp.table_code::<false>(
@@ -1840,7 +1887,13 @@ mod tests {
             a.masks[cell] = if k % 7 == 0 { [0; 16] } else { mask };
             let mut b = a.clone();
             let t = if k % 3 == 0 { 0 } else { next(64) as u8 };
-            let frag = Fragment { px: 4 * cx, py: 4 * cy, active: &[], cells: super::super::gq::ONE_CELL };
+            let frag = Fragment {
+                px: 4 * cx,
+                py: 4 * cy,
+                active: &[],
+                cells: super::super::gq::ONE_CELL,
+                bbox: super::super::gq::NO_BOX,
+            };
             let want = a.process::<false>(&frag, &[], t, &mut Counters::new(3));
             let got = b.inside(4 * cx, 4 * cy, t);
             assert_eq!(got, want, "case {k}");

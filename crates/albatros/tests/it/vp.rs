@@ -586,12 +586,12 @@ fn fragments_of(frame: &FrameList, descent: Descent) -> Vec<Vec<(u32, u32, [u16;
 
 /// The GQ's descent with counting (the machine's every step) and without it (where
 /// shortcuts may skip work) gives every polygon of the built-in scenes the same
-/// fragments, with the same codes, in the same order. (A shortcut that started a
-/// small polygon at the cells of its size instead of its bounding cell failed here:
-/// beyond a sliver's acute tip the SPP table's sets can AND to a few subpixels more
-/// than a pixel past the polygon's box, in cells the bounding cell reaches.) The
-/// filling descent, which walks the cells wholly inside with no edges, too, but for
-/// the closed bands it drops, whose codes are empty.
+/// fragments, with the same codes, in the same order. The filling descent, which
+/// walks the cells wholly inside with no edges, too, but for the closed bands it
+/// drops and the cells outside a start at the polygon's size, whose codes are empty.
+/// (That start failed here until the codes were clipped to the polygon's box: beyond
+/// a sliver's acute tip the SPP table's sets can AND to a few subpixels more than a
+/// pixel past the box, in cells only the bounding cell reaches.)
 #[test]
 fn counting_and_plain_descents_give_the_same_fragments() {
     for name in ["default", "terrain", "city", "rombm"] {
@@ -605,7 +605,8 @@ fn counting_and_plain_descents_give_the_same_fragments() {
             assert_eq!(m, p, "{name}, plain: polygon {i}");
         }
         // The filling descent drops the cells where two edges close the polygon
-        // (`band_closed`): the machine's fragments less some of empty code.
+        // (`band_closed`) and those a start at the polygon's size does not reach:
+        // the machine's fragments less some of empty code (clipped to the box).
         let filling = fragments_of(&frame, Descent::Filling);
         let mut dropped = 0;
         for (i, (m, f)) in machine.iter().zip(&filling).enumerate() {
