@@ -850,7 +850,13 @@ impl CellProcessors {
         // no list (and with counting off, four masked children no edge codes).
         // Bits are only ever set on levels in use; cells wholly off the screen always
         // read as covered (pre-masked), whatever the mode.
-        let m = self.memories[child_level as usize].children(z);
+        let mut m = self.memories[child_level as usize].children(z);
+        if FILL {
+            // Children the polygon's box does not meet, as if masked: their codes
+            // clip to nothing ([`super::spp::box_pixels`]), and none is IN (a cell
+            // wholly inside the polygon lies in its box), so the marks are the same.
+            m |= !children_in_box(cell, self.root_level + 1 - cell.level, poly.bbox) & 0xF;
+        }
         if !STATS && m == 0xF {
             return;
         }
@@ -993,6 +999,19 @@ impl CellProcessors {
             self.fill(Cell { level: child_level, x, y }, 4 * z + c as usize, opaque, spp);
         }
     }
+}
+
+/// The children of `cell` (bit `c = dx + 2 dy`) that meet the box `bbox` (pixels,
+/// `[x0, x1) x [y0, y1)`, not empty), the children's cells being `2^shift` pixels.
+#[inline(always)]
+fn children_in_box(cell: Cell, shift: u32, bbox: [u32; 4]) -> u8 {
+    let [x0, x1, y0, y1] = bbox;
+    // The children's columns and rows the box spans, against the cell's two.
+    let (cx, cy) = (2 * cell.x, 2 * cell.y);
+    let (lx, hx, ly, hy) = (x0 >> shift, (x1 - 1) >> shift, y0 >> shift, (y1 - 1) >> shift);
+    let columns = u8::from(lx <= cx && cx <= hx) | u8::from(lx <= cx + 1 && cx < hx) << 1;
+    let rows = u8::from(ly <= cy && cy <= hy) | u8::from(ly <= cy + 1 && cy < hy) << 1;
+    (columns * 0b0101) & (if rows & 1 != 0 { 0b0011 } else { 0 } | if rows & 2 != 0 { 0b1100 } else { 0 })
 }
 
 /// One step of the SPP's `q` (an eighth of a pixel, [`SPP_V_BITS`]) in
@@ -1333,6 +1352,30 @@ mod tests {
             }
         }
         assert_eq!(box_pixels(8, 4, NO_BOX), 0xFFFF);
+    }
+
+    /// [`children_in_box`] is the children whose pixel squares meet the box: every
+    /// box of a 32-pixel square around cells of sides 2-16.
+    #[test]
+    fn children_in_box_meet_the_box() {
+        for shift in 1..=3u32 {
+            let side = 1u32 << shift;
+            let cell = Cell { level: 0, x: 1, y: 1 };
+            for x0 in 0..32 {
+                for x1 in x0 + 1..=32 {
+                    for (y0, y1) in [(0, 32), (3, 5), (2 * side, 2 * side + 1), (0, 2 * side), (3 * side, 32)] {
+                        let want = (0..4).fold(0u8, |w, c| {
+                            let (cx, cy) = (2 * cell.x + (c & 1), 2 * cell.y + (c >> 1));
+                            let meets =
+                                cx * side < x1 && (cx + 1) * side > x0 && cy * side < y1 && (cy + 1) * side > y0;
+                            w | u8::from(meets) << c
+                        });
+                        let bbox = [x0, x1, y0, y1];
+                        assert_eq!(children_in_box(cell, shift, bbox), want, "shift {shift}, box {bbox:?}");
+                    }
+                }
+            }
+        }
     }
 
     /// The plain descent, the GQ's definition before its optimisations: lists in
