@@ -657,19 +657,14 @@ impl CellProcessors {
         // A polygon whose starting cell lies in a covered cell of any masking level
         // is dropped whole.
         let start_z = morton(start.x, start.y);
-        for k in 1..=start.level {
-            if self.masks.has(k) {
-                // The ancestor of level `k`: two Z-order bits per level up.
-                if self.memories[k as usize].get_z(start_z >> (2 * (start.level - k))) {
-                    if STATS {
-                        counters.levels[start.level as usize].polygons_masked += 1;
-                        if let Some(rec) = &mut self.recorder {
-                            rec.push((start, CellKind::PolygonMasked));
-                        }
-                    }
-                    return;
+        if self.covered(start_z, start.level, 1) {
+            if STATS {
+                counters.levels[start.level as usize].polygons_masked += 1;
+                if let Some(rec) = &mut self.recorder {
+                    rec.push((start, CellKind::PolygonMasked));
                 }
             }
+            return;
         }
         if STATS {
             if let Some(rec) = &mut self.recorder {
@@ -703,6 +698,24 @@ impl CellProcessors {
         }
         let half = 1i64 << (EDGE_FRAC_BITS + (self.root_level + 1 - start.level));
         self.split::<STATS, FILL>(start, start_z, first, n, half, poly, counters, spp);
+    }
+
+    /// Whether the cell of Z-order index `z` on level `level`, or its ancestor on a
+    /// level `from..=level` in use, is marked covered. The deepest level first: a
+    /// hidden polygon's smallest cells are the likeliest covered (most of `many`'s
+    /// triangles are hidden), and the levels in use are walked by their bits.
+    #[inline(always)]
+    fn covered(&self, z: usize, level: u32, from: u32) -> bool {
+        let mut levels = self.masks.0 & ((2u32 << level) - 1) & !((1u32 << from) - 1);
+        while levels != 0 {
+            let k = 31 - levels.leading_zeros();
+            levels &= !(1 << k);
+            // The ancestor on level `k`: two Z-order bits per level up.
+            if self.memories[k as usize].get_z(z >> (2 * (level - k))) {
+                return true;
+            }
+        }
+        false
     }
 
     /// The level of a box's size (`bbox`, not empty): the deepest level at most L - 1
@@ -773,11 +786,9 @@ impl CellProcessors {
         let half = 1i64 << (EDGE_FRAC_BITS + (self.root_level + 1 - level));
         let first = 4 * self.stride * level as usize;
         let n = poly.edges.len();
-        'cells: for &(z, cell) in cells.iter() {
-            for k in start.level + 1..=level {
-                if self.masks.has(k) && self.memories[k as usize].get_z(z >> (2 * (level - k))) {
-                    continue 'cells;
-                }
+        for &(z, cell) in cells.iter() {
+            if self.covered(z, level, start.level + 1) {
+                continue;
             }
             let (x0, y0) = (i64::from(cell.x) * side, i64::from(cell.y) * side);
             // IN for every edge (as its parent's split would code it: the line at
