@@ -37,7 +37,10 @@
 //! processor can run with the plain per-pixel definition.
 //!
 //! A cell's colours go to the VB as [`CellColors`], an array per component, which
-//! the explicit copies here and the VB's F1 store and load as whole registers.
+//! the explicit copies here and the VB's F1 store and load as whole registers. With
+//! AVX2 (and not AVX-512) and the VB's 8-bit code, the VB's F1 of the cell runs at
+//! the end of the AVX2 copy's own function ([`ColorComputers::shade_accumulate`]):
+//! no call, dispatch or set-up of F1 per cell.
 
 #[cfg(target_arch = "x86_64")]
 use std::arch::x86_64::*;

@@ -6,7 +6,9 @@
 //! in priority order; the background is the last fragment of every pixel and fills
 //! what is left, so the areas of a pixel always sum to one. The first fragment of a
 //! pixel is written as it is, later ones read-modify-write (P1's first-write flag from
-//! the subpixel mask memory: no clearing pass is needed for correctness).
+//! the subpixel mask memory: no clearing pass is needed for correctness). The 8-bit
+//! code's F1 in AVX2 (`F1Avx2`) runs inside the AVX2 colour computers' function,
+//! the cell's colours handed over in [`CellColors`] with no call between.
 //!
 //! Readout: the coarse filter F2 gives each pixel the mean of itself and its right,
 //! lower and lower-right neighbours (a 2 x 2 box) in two passes, first the half sums
@@ -1474,7 +1476,7 @@ impl F1Log8 {
 /// neither a call nor F1's set-up per cell (default: ~90 instructions a cell of
 /// dispatch, arguments and saved registers).
 #[cfg(target_arch = "x86_64")]
-pub struct F1Avx2<'a> {
+pub(crate) struct F1Avx2<'a> {
     codes: &'a mut [Word8],
     width: usize,
     regs: &'static F1Log8,
@@ -1485,7 +1487,7 @@ impl F1Avx2<'_> {
     /// [`VideoBuffer::accumulate`] of one cell, in [`accumulate_log8_avx2`].
     #[target_feature(enable = "avx2")]
     #[inline]
-    pub fn accumulate(&mut self, vis: &Visible, colors: &CellColors) {
+    pub(crate) fn accumulate(&mut self, vis: &Visible, colors: &CellColors) {
         accumulate_log8_avx2(self.codes, self.width, vis, colors, &self.regs.f1, self.regs.encoder);
     }
 }
@@ -1495,7 +1497,7 @@ impl VideoBuffer {
     /// code and the processor has AVX2 (the same words as [`Self::accumulate`]).
     #[cfg(target_arch = "x86_64")]
     #[inline]
-    pub fn f1_avx2(&mut self) -> Option<F1Avx2<'_>> {
+    pub(crate) fn f1_avx2(&mut self) -> Option<F1Avx2<'_>> {
         let width = self.width as usize;
         match &mut self.memory {
             Memory::Log8 { codes, .. } if std::is_x86_feature_detected!("avx2") => {
@@ -1538,8 +1540,11 @@ const SOFTPLUS_LANE_MAX: i32 = SOFTPLUS_PADDED as i32 - 2;
 ///
 /// Measured (callgrind, default at 1920 x 1080, one thread): the windows placed at a
 /// pixel rather than at the least address over the lanes (a reduction and a test
-/// per component) and the cell's masks and bounds once took colour + VB from 166.1
-/// to 157.2 M instructions (F1 itself ~465 instructions a cell).
+/// per component: ~31 instructions a component) took colour + VB from 166.1 to
+/// 157.7 M instructions (F1 had been ~465 instructions a cell); inside the CC's
+/// function ([`F1Avx2`]), 154.3 M. The cell's masks and bounds once rather than per
+/// half and row cost 1 M alone but save 0.7 M inside the CC's function (the
+/// per-half form there: 155.0 M).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
