@@ -37,7 +37,10 @@
 //! processor can run with the plain per-pixel definition.
 //!
 //! A cell's colours go to the VB as [`CellColors`], an array per component, which
-//! the explicit copies here and the VB's F1 store and load as whole registers.
+//! the explicit copies here and the VB's F1 store and load as whole registers. With
+//! AVX2 (and not AVX-512) and the VB's 8-bit code, the VB's F1 of the cell runs at
+//! the end of the AVX2 copy's own function ([`ColorComputers::shade_accumulate`]):
+//! no call, dispatch or set-up of F1 per cell.
 
 #[cfg(target_arch = "x86_64")]
 use std::arch::x86_64::*;
@@ -47,6 +50,9 @@ use glam::Vec3;
 use super::spp::Visible;
 use super::tac::TacRom;
 use super::texture::{TextureMap, TextureMaps, LANES};
+#[cfg(target_arch = "x86_64")]
+use super::vb::F1Avx2;
+use super::vb::VideoBuffer;
 use crate::frame::{FracLin, FrameList, FramePolygon, PolyTexture};
 use crate::model::stats::Counters;
 
@@ -170,6 +176,38 @@ impl<'a> ColorComputers<'a> {
         }
     }
 
+    /// [`Self::shade`], then the VB's F1 of the cell's colours
+    /// ([`VideoBuffer::accumulate`]). With AVX2 (not AVX-512) and the VB's 8-bit code,
+    /// both in one function ([`Self::shade_avx2`] with its `f1`): no call, dispatch or set-up of
+    /// F1 per cell. The same colours and words.
+    pub fn shade_accumulate<const STATS: bool>(
+        &self,
+        poly: &FramePolygon,
+        vis: &Visible,
+        out: &mut CellColors,
+        counters: &mut Counters,
+        vb: &mut VideoBuffer,
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if !std::is_x86_feature_detected!("avx512f") {
+            if let Some(mut f1) = vb.f1_avx2() {
+                // SAFETY: `shade_f1_avx2` only needs AVX2, which the processor has
+                // (`f1_avx2` is `Some` only then).
+                #[allow(unsafe_code, reason = "the one call of a function compiled for AVX2, after detection")]
+                unsafe {
+                    self.shade_avx2(poly, vis, out, Some(&mut f1))
+                };
+                if STATS {
+                    let visible = crate::model::stats::visible_pixels(&vis.sets);
+                    counters.count_cc_cell(visible, self.drawn_texture(poly));
+                }
+                return;
+            }
+        }
+        self.shade::<STATS>(poly, vis, out, counters);
+        vb.accumulate(vis, out);
+    }
+
     /// Whether `poly` has a texture whose map exists (a texture whose map is
     /// missing is not drawn: the face keeps its colour).
     fn drawn_texture(&self, poly: &FramePolygon) -> bool {
@@ -194,7 +232,7 @@ impl<'a> ColorComputers<'a> {
             // found to have.
             #[allow(unsafe_code, reason = "the one call of a function compiled for AVX2, after detection")]
             unsafe {
-                return self.shade_avx2(poly, vis, out);
+                return self.shade_avx2(poly, vis, out, None);
             }
         }
         self.shade_scalar(poly, vis, out)
@@ -212,9 +250,12 @@ impl<'a> ColorComputers<'a> {
     /// (their chains of dependent steps overlap), and a packed group costs its
     /// lanes' scattered stores: terrain's colour computers 3 % faster without it,
     /// default's the same.
+    ///
+    /// With `f1`, the VB's F1 of the cell follows in the same function
+    /// ([`Self::shade_accumulate`]).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn shade_avx2(&self, poly: &FramePolygon, vis: &Visible, out: &mut CellColors) {
+    fn shade_avx2(&self, poly: &FramePolygon, vis: &Visible, out: &mut CellColors, f1: Option<&mut F1Avx2>) {
         const N: usize = AVX2_LANES;
         let visible = visible_avx2(&vis.sets);
         if visible == 0 {
@@ -234,6 +275,9 @@ impl<'a> ColorComputers<'a> {
             for (out, c) in out.rgb.iter_mut().zip(cell.group_avx2(pixel)) {
                 store_lanes(c, (&mut out[N * half..N * (half + 1)]).try_into().expect("8 lanes"));
             }
+        }
+        if let Some(f1) = f1 {
+            f1.accumulate(vis, out);
         }
     }
 
@@ -752,6 +796,10 @@ mod tests {
     #[test]
     fn shading_packed_pixels_is_shading_each_pixel_bit_for_bit() {
         let maps = TextureMaps::new(vec![builtin("grass").unwrap(), builtin("checker").unwrap()]);
+        // Two VBs of the 8-bit code: one written by `shade_accumulate` (with AVX2, the
+        // CC and F1 in one function), the other by `shade` and `accumulate`.
+        let (w, h_px) = (1924, 1084);
+        let [mut fused, mut apart] = [0, 1].map(|_| VideoBuffer::new(w, h_px, crate::vp::vb::VbMode::default()));
         let mut h = 0x9E37_79B9u32;
         let mut next = || {
             h ^= h << 13;
@@ -830,7 +878,7 @@ mod tests {
                 #[allow(unsafe_code, reason = "a test of the AVX2 copies, after detection")]
                 unsafe {
                     cc.shade_lanes_avx2(&poly, &vis, &mut lanes_avx2);
-                    cc.shade_avx2(&poly, &vis, &mut avx2);
+                    cc.shade_avx2(&poly, &vis, &mut avx2, None);
                 }
             }
             #[cfg(target_arch = "x86_64")]
@@ -850,6 +898,24 @@ mod tests {
                 assert_eq!(bits(&lanes_avx2.pixel(i)), bits(&expect), "round {round}, pixel {i}: the AVX2 lanes");
                 assert_eq!(bits(&avx2.pixel(i)), bits(&expect), "round {round}, pixel {i}: the AVX2 copy");
                 assert_eq!(bits(&avx512.pixel(i)), bits(&expect), "round {round}, pixel {i}: the AVX-512 copy");
+            }
+            // First writes, whole and partial, and later ones over what the VBs hold.
+            let mut vis = vis;
+            vis.first = (next() * 65535.0) as u16;
+            if round % 3 == 0 {
+                for s in vis.sets.iter_mut().filter(|s| **s != 0) {
+                    *s = crate::vp::spp::FULL;
+                }
+            }
+            let mut counters = Counters::new(9);
+            let mut colors = CellColors::splat(unset);
+            cc.shade_accumulate::<false>(&poly, &vis, &mut colors, &mut counters, &mut fused);
+            cc.shade::<false>(&poly, &vis, &mut colors, &mut counters);
+            apart.accumulate(&vis, &colors);
+            for i in 0..16 {
+                let (x, y) = (px + i % 4, py + i / 4);
+                let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+                assert_eq!(bits(fused.linear(x, y)), bits(apart.linear(x, y)), "round {round}, pixel {i}: F1");
             }
         }
     }

@@ -211,9 +211,8 @@ impl VideoProcessor {
                             return;
                         }
                     }
-                    cc.shade::<STATS>(poly, vis, &mut colors, &mut inner);
                     // The VB's writes are counted once per frame (`run`).
-                    vb.accumulate(vis, &colors);
+                    cc.shade_accumulate::<STATS>(poly, vis, &mut colors, &mut inner, vb);
                 }
                 None => vb.accumulate_flat(vis, frame.background),
             },

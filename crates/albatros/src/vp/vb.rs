@@ -6,7 +6,9 @@
 //! in priority order; the background is the last fragment of every pixel and fills
 //! what is left, so the areas of a pixel always sum to one. The first fragment of a
 //! pixel is written as it is, later ones read-modify-write (P1's first-write flag from
-//! the subpixel mask memory: no clearing pass is needed for correctness).
+//! the subpixel mask memory: no clearing pass is needed for correctness). The 8-bit
+//! code's F1 in AVX2 (`F1Avx2`) runs inside the AVX2 colour computers' function,
+//! the cell's colours handed over in [`CellColors`] with no call between.
 //!
 //! Readout: the coarse filter F2 gives each pixel the mean of itself and its right,
 //! lower and lower-right neighbours (a 2 x 2 box) in two passes, first the half sums
@@ -793,8 +795,13 @@ const ENCODER8_ENTRIES: usize = 1 << (32 - ENCODER8_SHIFT);
 /// load when a component's addresses over a cell are that close (P1's pixels of a
 /// cell have near colours: a window is a range of `2^(16/64) = 1.19` in value).
 const ENCODER8_WINDOW: usize = 8;
+/// Entries of [`Encoder8`]'s window below the address of the pixel that places it
+/// (the first visible one of half a cell): the window then holds that address and
+/// the 3 below and 4 above it.
+#[cfg(target_arch = "x86_64")]
+const ENCODER8_BACK: usize = 3;
 /// [`Encoder8`]'s table with room for a window from its last entry (zeros, never
-/// selected: a window holds the addresses from the least one up).
+/// selected: a wanted lane's address is below `ENCODER8_ENTRIES`).
 const ENCODER8_PADDED: usize = ENCODER8_ENTRIES + ENCODER8_WINDOW - 1;
 
 /// The encoder ROM of the 8-bit code ([`LogScale::encode`]) over every `f32`, so that
@@ -1463,6 +1470,44 @@ impl F1Log8 {
     }
 }
 
+/// F1 of the 8-bit code for the AVX2 colour computers to run inside their own
+/// function ([`super::cc::ColorComputers::shade_accumulate`]): the cell's colours go
+/// from the CC's registers to F1's through [`CellColors`] in one function, with
+/// neither a call nor F1's set-up per cell (default: ~90 instructions a cell of
+/// dispatch, arguments and saved registers).
+#[cfg(target_arch = "x86_64")]
+pub(crate) struct F1Avx2<'a> {
+    codes: &'a mut [Word8],
+    width: usize,
+    regs: &'static F1Log8,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl F1Avx2<'_> {
+    /// [`VideoBuffer::accumulate`] of one cell, in [`accumulate_log8_avx2`].
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(crate) fn accumulate(&mut self, vis: &Visible, colors: &CellColors) {
+        accumulate_log8_avx2(self.codes, self.width, vis, colors, &self.regs.f1, self.regs.encoder);
+    }
+}
+
+impl VideoBuffer {
+    /// The VB's F1 for the AVX2 colour computers ([`F1Avx2`]) when it holds the 8-bit
+    /// code and the processor has AVX2 (the same words as [`Self::accumulate`]).
+    #[cfg(target_arch = "x86_64")]
+    #[inline]
+    pub(crate) fn f1_avx2(&mut self) -> Option<F1Avx2<'_>> {
+        let width = self.width as usize;
+        match &mut self.memory {
+            Memory::Log8 { codes, .. } if std::is_x86_feature_detected!("avx2") => {
+                Some(F1Avx2 { codes, width, regs: F1Log8::get() })
+            }
+            _ => None,
+        }
+    }
+}
+
 /// [`accumulate_log8`] for the build's target, whatever the processor.
 fn accumulate_log8_portable(
     codes: &mut [Word8],
@@ -1484,16 +1529,25 @@ fn accumulate_log8_portable(
 const SOFTPLUS_LANE_MAX: i32 = SOFTPLUS_PADDED as i32 - 2;
 
 /// [`accumulate_log8`] in explicit AVX2: half a cell (two rows, 8 pixels) per group
-/// of lanes. Per component: the encoder ROM's entries (`next` and `from`,
-/// [`Encoder8`]) by one load of a window of 8 entries and a permute when the visible
-/// pixels' addresses are that close (near colours, the common case), else by a
-/// gather ([`encode8_avx2`]); then unless every visible pixel of the half is a whole
-/// first fragment (stored as its codes, as [`accumulate_log`] does), eq. 3 (`ln S`
-/// by a gather over the subpixel count), eq. 4 with the stored codes for the later
-/// fragments (`ln(1 + e^x)` as a gather) and [`LogArith::store`], in lanes. Rows of
-/// the half are stored whole, or their visible pixels one by one.
+/// of lanes. The cell's masks (visible, whole) from one compare of its 16 sets each,
+/// and its rows down to the last visible one as one slice (one bounds check). Per
+/// half with a visible pixel: the three components' codes ([`encode8_rgb_avx2`]: the
+/// encoder ROM's entries by windows of the table placed at the first visible pixel,
+/// near colours being the common case); then unless every visible pixel of the half
+/// is a whole first fragment (stored as its codes, as [`accumulate_log`] does), eq.
+/// 3 and 4 in lanes ([`f1_lanes_avx2`]). Rows of the half are stored whole, or their
+/// visible pixels one by one.
+///
+/// Measured (callgrind, default at 1920 x 1080, one thread): the windows placed at a
+/// pixel rather than at the least address over the lanes (a reduction and a test
+/// per component: ~31 instructions a component) took colour + VB from 166.1 to
+/// 157.7 M instructions (F1 had been ~465 instructions a cell); inside the CC's
+/// function ([`F1Avx2`]), 154.3 M. The cell's masks and bounds once rather than per
+/// half and row cost 1 M alone but save 0.7 M inside the CC's function (the
+/// per-half form there: 155.0 M).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
+#[inline]
 fn accumulate_log8_avx2(
     codes: &mut [Word8],
     width: usize,
@@ -1503,108 +1557,68 @@ fn accumulate_log8_avx2(
     encoder: Encoder8Tables,
 ) {
     const SIDE: usize = CELL_SIDE as usize;
+    // SAFETY: `vis.sets` is 16 `u16`, the 32 bytes the load reads.
+    #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
+    let sets = unsafe { _mm256_loadu_si256(vis.sets.as_ptr().cast()) };
+    let hidden = _mm256_cmpeq_epi16(sets, _mm256_setzero_si256());
+    let visible = u32::from(!mask16_avx2(hidden));
+    if visible == 0 {
+        return;
+    }
+    // Whole first fragments: stored as their codes.
+    let done = visible
+        & u32::from(mask16_avx2(_mm256_cmpeq_epi16(sets, _mm256_set1_epi16(FULL as i16))))
+        & u32::from(vis.first);
     let (px, py) = (vis.px as usize, vis.py as usize);
     // Pixels of each row on the screen (those beyond have no visible subpixel).
     let cols = width.saturating_sub(px).min(SIDE);
-    let lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+    // The rows down to the last one with a visible pixel (those below may be off
+    // the screen), as one slice: row `r` at `r * width .. r * width + cols`.
+    let last = (u32::BITS - 1 - visible.leading_zeros()) as usize / SIDE;
+    let start = py * width + px;
+    let cell = &mut codes[start..start + last * width + cols];
     for half in 0..2 {
-        let sets = _mm256_cvtepu16_epi32(load_u16x8(vis.sets[8 * half..8 * half + 8].try_into().expect("8 sets")));
-        let zero = _mm256_setzero_si256();
-        let hidden = _mm256_cmpeq_epi32(sets, zero);
-        let visible = !(_mm256_movemask_ps(_mm256_castsi256_ps(hidden)) as u32) & 0xFF;
-        if visible == 0 {
+        let lanes = visible >> (8 * half) & 0xFF;
+        if lanes == 0 {
             continue;
         }
-        let full =
-            _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(sets, _mm256_set1_epi32(FULL.into())))) as u32;
-        let first = u32::from(vis.first) >> (8 * half) & 0xFF;
-        let [r, g, b] = load_colors_half(colors, half);
-        let table = encoder.entries;
-        let mut word = _mm256_or_si256(
-            _mm256_or_si256(encode8_avx2(r, hidden, table), _mm256_slli_epi32::<8>(encode8_avx2(g, hidden, table))),
-            _mm256_slli_epi32::<16>(encode8_avx2(b, hidden, table)),
-        );
-        if visible & full & first != visible {
-            // Eq. 3 and 4 in lanes (a whole first fragment's result is its code).
-            let later = visible & !first;
-            let ln_s = {
-                let index = _mm256_and_si256(
-                    _mm256_sub_epi32(popcount16_avx2(sets), _mm256_set1_epi32(1)),
-                    _mm256_set1_epi32(15),
-                );
-                // The 16 entries in two registers, each permuted by the index's
-                // low 3 bits, the one its bit 3 names kept (no gather).
-                let (low, high): (&[i32; 8], &[i32; 8]) =
-                    (f1.ln_area[..8].try_into().expect("8 entries"), f1.ln_area[8..].try_into().expect("8 entries"));
-                // SAFETY: `low` and `high` are 8 `i32` each, the 32 bytes each load reads.
-                #[allow(unsafe_code, reason = "unaligned loads of arrays of a register's size")]
-                let (low, high) =
-                    unsafe { (_mm256_loadu_si256(low.as_ptr().cast()), _mm256_loadu_si256(high.as_ptr().cast())) };
-                _mm256_blendv_epi8(
-                    _mm256_permutevar8x32_epi32(low, index),
-                    _mm256_permutevar8x32_epi32(high, index),
-                    _mm256_cmpgt_epi32(index, _mm256_set1_epi32(7)),
-                )
-            };
-            let mut stored = zero;
-            if later != 0 {
-                for row in 0..2 {
-                    if visible >> (4 * row) & 0xF == 0 {
-                        continue;
-                    }
-                    let start = (py + 2 * half + row) * width + px;
-                    let words = load_row(&codes[start..start + cols]);
-                    stored = if row == 0 {
-                        _mm256_inserti128_si256::<0>(stored, words)
-                    } else {
-                        _mm256_inserti128_si256::<1>(stored, words)
-                    };
+        let hidden = _mm256_cvtepi16_epi32(if half == 0 {
+            _mm256_castsi256_si128(hidden)
+        } else {
+            _mm256_extracti128_si256::<1>(hidden)
+        });
+        // The first visible pixel's colour places the ROM's windows.
+        let lane = (8 * half + lanes.trailing_zeros() as usize) & 15;
+        let anchor = [colors.rgb[0][lane], colors.rgb[1][lane], colors.rgb[2][lane]];
+        let mut word = encode8_rgb_avx2(load_colors_half(colors, half), hidden, anchor, encoder.entries);
+        if done >> (8 * half) & 0xFF != lanes {
+            let first = u32::from(vis.first) >> (8 * half) & 0xFF;
+            let later = lanes & !first;
+            let mut stored = _mm256_setzero_si256();
+            for row in 0..2 {
+                if later >> (4 * row) & 0xF == 0 {
+                    continue;
                 }
+                // Row `2 half + row` has a visible pixel, so it is in `cell`.
+                let at = (2 * half + row) * width;
+                let words = load_row(&cell[at..at + cols]);
+                stored = if row == 0 {
+                    _mm256_inserti128_si256::<0>(stored, words)
+                } else {
+                    _mm256_inserti128_si256::<1>(stored, words)
+                };
             }
-            let first_lanes =
-                _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(first as i32), lane_bits), lane_bits);
-            let arith = f1.arith;
-            let mut out = zero;
-            for shift in [0, 8, 16] {
-                let count = _mm_cvtsi32_si128(shift);
-                let byte = _mm256_set1_epi32(0xFF);
-                let mut v =
-                    _mm256_add_epi32(from_code_avx2(_mm256_and_si256(_mm256_srl_epi32(word, count), byte)), ln_s);
-                if later != 0 {
-                    let s = from_code_avx2(_mm256_and_si256(_mm256_srl_epi32(stored, count), byte));
-                    let (hi, lo) = (_mm256_max_epi32(v, s), _mm256_min_epi32(v, s));
-                    let d = _mm256_min_epi32(_mm256_sub_epi32(hi, lo), _mm256_set1_epi32(SOFTPLUS_LANE_MAX));
-                    // SAFETY: `d` is `0 ..= SOFTPLUS_PADDED - 2` (a difference max
-                    // - min, clamped), so the 4 bytes read at entry `d` are entries
-                    // `d` and `d + 1` of the padded table.
-                    #[allow(
-                        unsafe_code,
-                        reason = "a gather from the padded ln(1 + e^x) table, the index clamped inside it"
-                    )]
-                    let t = unsafe { _mm256_i32gather_epi32::<2>(arith.softplus.as_ptr().cast::<i32>(), d) };
-                    let sum = _mm256_add_epi32(hi, _mm256_and_si256(t, _mm256_set1_epi32(0xFFFF)));
-                    v = _mm256_blendv_epi8(sum, v, first_lanes);
-                }
-                // `LogArith::store`.
-                let rounded = _mm256_srai_epi32::<2>(_mm256_add_epi32(
-                    _mm256_add_epi32(v, _mm256_set1_epi32(FINE_PER_CODE / 2 - 1)),
-                    _mm256_and_si256(_mm256_srai_epi32::<2>(v), _mm256_set1_epi32(1)),
-                ));
-                let code =
-                    _mm256_min_epi32(_mm256_max_epi32(rounded, _mm256_set1_epi32(1)), _mm256_set1_epi32(arith.one));
-                let kept = _mm256_cmpgt_epi32(v, _mm256_set1_epi32(arith.floor - 1));
-                out = _mm256_or_si256(out, _mm256_sll_epi32(_mm256_and_si256(code, kept), count));
-            }
-            word = out;
+            let half_sets = if half == 0 { _mm256_castsi256_si128(sets) } else { _mm256_extracti128_si256::<1>(sets) };
+            word = f1_lanes_avx2(word, stored, _mm256_cvtepu16_epi32(half_sets), first, later, f1);
         }
         for row in 0..2 {
-            let lanes = visible >> (4 * row) & 0xF;
+            let lanes = lanes >> (4 * row) & 0xF;
             if lanes == 0 {
                 continue;
             }
-            let start = (py + 2 * half + row) * width + px;
+            let at = (2 * half + row) * width;
             let new = if row == 0 { _mm256_castsi256_si128(word) } else { _mm256_extracti128_si256::<1>(word) };
-            let dst = &mut codes[start..start + cols];
+            let dst = &mut cell[at..at + cols];
             if lanes == 0xF && cols == SIDE {
                 store_row(dst, new);
             } else {
@@ -1622,16 +1636,71 @@ fn accumulate_log8_avx2(
     }
 }
 
-/// Eight `u16` in a 128-bit register.
+/// A bit per 16-bit lane of `v` (all ones or zeros in each), lane `i` at bit `i`.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-fn load_u16x8(a: &[u16; 8]) -> __m128i {
-    // SAFETY: `a` is 16 bytes, which the load reads.
-    #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
-    unsafe {
-        _mm_loadu_si128(a.as_ptr().cast())
+fn mask16_avx2(v: __m256i) -> u16 {
+    let bytes = _mm_packs_epi16(_mm256_castsi256_si128(v), _mm256_extracti128_si256::<1>(v));
+    _mm_movemask_epi8(bytes) as u16
+}
+
+/// Eq. 3 and 4 of half a cell in lanes (a whole first fragment's result is its
+/// code): the codes `word` ([`Word8`]s) weighed by `ln S` (the subpixel counts of
+/// `sets` through the `ln S` table, permuted from two registers, no gather), summed
+/// with the `stored` words in the `later` lanes (`ln(1 + e^x)` by a gather), and
+/// stored ([`LogArith::store`]); `first`, `later`: a bit per lane.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn f1_lanes_avx2(word: __m256i, stored: __m256i, sets: __m256i, first: u32, later: u32, f1: &LogF1) -> __m256i {
+    let lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+    let ln_s = {
+        let index =
+            _mm256_and_si256(_mm256_sub_epi32(popcount16_avx2(sets), _mm256_set1_epi32(1)), _mm256_set1_epi32(15));
+        // The 16 entries in two registers, each permuted by the index's
+        // low 3 bits, the one its bit 3 names kept (no gather).
+        let (low, high): (&[i32; 8], &[i32; 8]) =
+            (f1.ln_area[..8].try_into().expect("8 entries"), f1.ln_area[8..].try_into().expect("8 entries"));
+        // SAFETY: `low` and `high` are 8 `i32` each, the 32 bytes each load reads.
+        #[allow(unsafe_code, reason = "unaligned loads of arrays of a register's size")]
+        let (low, high) =
+            unsafe { (_mm256_loadu_si256(low.as_ptr().cast()), _mm256_loadu_si256(high.as_ptr().cast())) };
+        _mm256_blendv_epi8(
+            _mm256_permutevar8x32_epi32(low, index),
+            _mm256_permutevar8x32_epi32(high, index),
+            _mm256_cmpgt_epi32(index, _mm256_set1_epi32(7)),
+        )
+    };
+    let first_lanes = _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(first as i32), lane_bits), lane_bits);
+    let arith = f1.arith;
+    let mut out = _mm256_setzero_si256();
+    for shift in [0, 8, 16] {
+        let count = _mm_cvtsi32_si128(shift);
+        let byte = _mm256_set1_epi32(0xFF);
+        let mut v = _mm256_add_epi32(from_code_avx2(_mm256_and_si256(_mm256_srl_epi32(word, count), byte)), ln_s);
+        if later != 0 {
+            let s = from_code_avx2(_mm256_and_si256(_mm256_srl_epi32(stored, count), byte));
+            let (hi, lo) = (_mm256_max_epi32(v, s), _mm256_min_epi32(v, s));
+            let d = _mm256_min_epi32(_mm256_sub_epi32(hi, lo), _mm256_set1_epi32(SOFTPLUS_LANE_MAX));
+            // SAFETY: `d` is `0 ..= SOFTPLUS_PADDED - 2` (a difference max
+            // - min, clamped), so the 4 bytes read at entry `d` are entries
+            // `d` and `d + 1` of the padded table.
+            #[allow(unsafe_code, reason = "a gather from the padded ln(1 + e^x) table, the index clamped inside it")]
+            let t = unsafe { _mm256_i32gather_epi32::<2>(arith.softplus.as_ptr().cast::<i32>(), d) };
+            let sum = _mm256_add_epi32(hi, _mm256_and_si256(t, _mm256_set1_epi32(0xFFFF)));
+            v = _mm256_blendv_epi8(sum, v, first_lanes);
+        }
+        // `LogArith::store`.
+        let rounded = _mm256_srai_epi32::<2>(_mm256_add_epi32(
+            _mm256_add_epi32(v, _mm256_set1_epi32(FINE_PER_CODE / 2 - 1)),
+            _mm256_and_si256(_mm256_srai_epi32::<2>(v), _mm256_set1_epi32(1)),
+        ));
+        let code = _mm256_min_epi32(_mm256_max_epi32(rounded, _mm256_set1_epi32(1)), _mm256_set1_epi32(arith.one));
+        let kept = _mm256_cmpgt_epi32(v, _mm256_set1_epi32(arith.floor - 1));
+        out = _mm256_or_si256(out, _mm256_sll_epi32(_mm256_and_si256(code, kept), count));
     }
+    out
 }
 
 /// A row of a cell's VMEM words: four words whole, fewer (at the screen's right
@@ -1688,17 +1757,67 @@ fn load_colors_half(colors: &CellColors, half: usize) -> [__m256; 3] {
     rgb
 }
 
-/// [`Encoder8Tables::encode`] of eight lanes (`hidden`: all ones in the lanes whose
-/// code is not wanted): the entries from one window of the table when the wanted
-/// lanes' addresses lie within [`ENCODER8_WINDOW`] of their least (a load and a
-/// permute), else by a gather.
+/// [`Encoder8Tables::encode`] of eight lanes of the three components, packed into
+/// [`Word8`]s (`hidden`: all ones in the lanes whose codes are not wanted; `lane`: a
+/// lane that is wanted). Each component's entries come from one window of the
+/// table, [`ENCODER8_BACK`] entries below `lane`'s address to
+/// `ENCODER8_WINDOW - ENCODER8_BACK - 1` above it (a load and a permute), when every
+/// wanted lane's address of every component lies in its window (one test, no
+/// reduction over the lanes); else from gathers. The window's entries are the
+/// table's, so the codes are the same either way.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-fn encode8_avx2(c: __m256, hidden: __m256i, table: &[u32; ENCODER8_PADDED]) -> __m256i {
+fn encode8_rgb_avx2(rgb: [__m256; 3], hidden: __m256i, lane: [f32; 3], table: &[u32; ENCODER8_PADDED]) -> __m256i {
     const LANES: usize = ENCODER8_WINDOW;
-    let bits = _mm256_castps_si256(c);
-    let address = _mm256_srli_epi32::<{ ENCODER8_SHIFT as i32 }>(bits);
+    // (Loops, not closures: a closure would not inherit the target feature.)
+    let (mut bits, mut address, mut d) =
+        ([_mm256_setzero_si256(); 3], [_mm256_setzero_si256(); 3], [_mm256_setzero_si256(); 3]);
+    let mut start = [0usize; 3];
+    for c in 0..3 {
+        bits[c] = _mm256_castps_si256(rgb[c]);
+        address[c] = _mm256_srli_epi32::<{ ENCODER8_SHIFT as i32 }>(bits[c]);
+        // A window's first entry: at most `ENCODER8_ENTRIES - 1` (an address is 15
+        // bits), so the window is inside the padded table.
+        start[c] = ((lane[c].to_bits() >> ENCODER8_SHIFT) as usize).saturating_sub(ENCODER8_BACK);
+        d[c] = _mm256_sub_epi32(address[c], _mm256_set1_epi32(start[c] as i32));
+    }
+    // Offsets in `0..LANES` have no bit above the window's; a negative one has.
+    let spread = _mm256_andnot_si256(hidden, _mm256_or_si256(_mm256_or_si256(d[0], d[1]), d[2]));
+    let windows = _mm256_testz_si256(spread, _mm256_set1_epi32(!(LANES as i32 - 1))) == 1;
+    let mut word = _mm256_setzero_si256();
+    for c in 0..3 {
+        let e = if windows {
+            let window: &[u32; LANES] = table[start[c]..start[c] + LANES].try_into().expect("a window");
+            // SAFETY: `window` is 32 bytes, which the load reads.
+            #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
+            let window = unsafe { _mm256_loadu_si256(window.as_ptr().cast()) };
+            _mm256_permutevar8x32_epi32(window, d[c])
+        } else {
+            entries8_avx2(address[c], hidden, table)
+        };
+        let below = _mm256_cmpgt_epi32(
+            _mm256_srli_epi32::<{ ENCODER8_FROM_SHIFT as i32 }>(e),
+            _mm256_and_si256(bits[c], _mm256_set1_epi32(ENCODER8_LOW as i32)),
+        );
+        // `next - 1` where below `from` (the compare's -1), in 8 bits.
+        let code = _mm256_and_si256(_mm256_add_epi32(e, below), _mm256_set1_epi32(0xFF));
+        word = _mm256_or_si256(word, _mm256_sll_epi32(code, _mm_cvtsi32_si128(8 * c as i32)));
+    }
+    word
+}
+
+/// The encoder ROM's entries of eight lanes at `address` (`hidden`: all ones in the
+/// lanes whose entries are not wanted): from one window of the table when the
+/// wanted lanes' addresses lie within [`ENCODER8_WINDOW`] of their least (a load and
+/// a permute), else by a gather. [`encode8_rgb_avx2`]'s way when a pixel's windows
+/// miss (~5 % of default's half cells: a window around the least address holds more
+/// of them than one around the first visible pixel's).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn entries8_avx2(address: __m256i, hidden: __m256i, table: &[u32; ENCODER8_PADDED]) -> __m256i {
+    const LANES: usize = ENCODER8_WINDOW;
     // The least address of the visible lanes (the hidden ones raised to all ones).
     let m = _mm256_or_si256(address, hidden);
     let m = _mm256_min_epu32(m, _mm256_permute2x128_si256::<0x01>(m, m));
@@ -1706,14 +1825,8 @@ fn encode8_avx2(c: __m256, hidden: __m256i, table: &[u32; ENCODER8_PADDED]) -> _
     let m = _mm256_min_epu32(m, _mm256_shuffle_epi32::<0b10_11_00_01>(m));
     let least = _mm256_cvtsi256_si32(m) as u32 as usize;
     let d = _mm256_sub_epi32(address, _mm256_set1_epi32(least as i32));
-    let outside = _mm256_andnot_si256(
-        hidden,
-        _mm256_cmpgt_epi32(
-            _mm256_max_epu32(d, _mm256_set1_epi32(LANES as i32 - 1)),
-            _mm256_set1_epi32(LANES as i32 - 1),
-        ),
-    );
-    let e = if _mm256_testz_si256(outside, outside) == 1 && least < ENCODER8_ENTRIES {
+    let outside = _mm256_andnot_si256(hidden, d);
+    if _mm256_testz_si256(outside, _mm256_set1_epi32(!(LANES as i32 - 1))) == 1 && least < ENCODER8_ENTRIES {
         // Every visible lane in the window of 8 entries from the least address.
         let window: &[u32; LANES] = table[least..least + LANES].try_into().expect("a window");
         // SAFETY: `window` is 32 bytes, which the load reads.
@@ -1727,13 +1840,7 @@ fn encode8_avx2(c: __m256, hidden: __m256i, table: &[u32; ENCODER8_PADDED]) -> _
         unsafe {
             _mm256_i32gather_epi32::<4>(table.as_ptr().cast::<i32>(), address)
         }
-    };
-    let below = _mm256_cmpgt_epi32(
-        _mm256_srli_epi32::<{ ENCODER8_FROM_SHIFT as i32 }>(e),
-        _mm256_and_si256(bits, _mm256_set1_epi32(ENCODER8_LOW as i32)),
-    );
-    // `next - 1` where below `from` (the compare's -1), in 8 bits.
-    _mm256_and_si256(_mm256_add_epi32(e, below), _mm256_set1_epi32(0xFF))
+    }
 }
 
 /// [`LogFine::from_code`] of eight codes: `4 q`, or [`LogFine::ZERO`] for 0.
