@@ -142,6 +142,122 @@ fn line_indices_sse2(v1: i64, slope: i64) -> [usize; 4] {
     std::array::from_fn(|k| (packed >> (16 * k)) as usize & (ROW_PART_WORDS - 1))
 }
 
+/// The body of [`vertex_words_avx2`] as an immediately called closure, for
+/// [`SubpixelProcessors::table_code_avx2`] to expand in its own code: a closure takes
+/// the target features of the function it is written in, where `#[inline(always)]`
+/// is refused on a `#[target_feature]` function and `#[inline]` left a call (on
+/// `many` two calls a fragment, each some 40 instructions of passing the words,
+/// saving and reloading registers and checking again what the caller knew).
+#[cfg(target_arch = "x86_64")]
+macro_rules! vertex_words_avx2_body {
+    ($e:expr, $px:expr, $py:expr, $vertical:expr, $words:expr) => {{
+        let body = |e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64; 4]| -> [u64; 4] {
+            if !e.exact32 || (px | py) >= CELL_LIMIT_32 {
+                return vertex_words(e, px, py, vertical, words);
+            }
+            use std::arch::x86_64::{
+                __m256i, _mm256_add_epi32, _mm256_blendv_epi8, _mm256_castps_si256, _mm256_castsi256_ps,
+                _mm256_castsi256_si128, _mm256_cmpgt_epi32, _mm256_cmpgt_epi64, _mm256_extracti128_si256,
+                _mm256_loadu_si256, _mm256_mullo_epi32, _mm256_packs_epi32, _mm256_permute4x64_epi64,
+                _mm256_set1_epi16, _mm256_set1_epi32, _mm256_set1_epi64x, _mm256_set_epi64x, _mm256_setr_epi32,
+                _mm256_shuffle_ps, _mm256_storeu_si256, _mm256_sub_epi32, _mm256_sub_epi64, _mm_movemask_epi8,
+                _mm_packs_epi16,
+            };
+            const SUB: i64 = (SNAP_ONE / 4) as i64;
+            let line = &e.exact;
+            let Some(VertexStart { near, e_cell, per_lane, per_word }) = vertex_start(line, px, py, vertical) else {
+                return words;
+            };
+            // -E at each pixel's first centre, lanes of words 0 and 1 in one register, of
+            // words 2 and 3 in the other, each clamped to 32 bits.
+            let (t01, t23) = if e_cell.unsigned_abs() + 3 * (per_lane.unsigned_abs() + per_word.unsigned_abs())
+                <= i32::MAX as u64
+            {
+                // Every value (and every partial sum on the way to it) within 32 bits, so the
+                // clamp keeps it: 32-bit lanes from the start, about 10 instructions against
+                // some 45 for the 64-bit lanes below. (Tiny polygons' cells take this way.)
+                let (per_lane, per_word) = (per_lane as i32, per_word as i32);
+                let steps = _mm256_add_epi32(
+                    _mm256_mullo_epi32(_mm256_set1_epi32(per_lane), _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3)),
+                    _mm256_mullo_epi32(_mm256_set1_epi32(per_word), _mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1)),
+                );
+                let t01 = _mm256_sub_epi32(_mm256_set1_epi32(-e_cell as i32), steps);
+                (t01, _mm256_sub_epi32(t01, _mm256_set1_epi32(2 * per_word)))
+            } else {
+                // A word's four lanes a register (every term below 2^48: no overflow).
+                let lanes = _mm256_set_epi64x(3 * per_lane, 2 * per_lane, per_lane, 0);
+                let first = _mm256_sub_epi64(_mm256_set1_epi64x(-e_cell), lanes);
+                let down = _mm256_set1_epi64x(per_word);
+                let (max, min) = (_mm256_set1_epi64x(i64::from(i32::MAX)), _mm256_set1_epi64x(i64::from(i32::MIN)));
+                let clamp = |v: __m256i| {
+                    let v = _mm256_blendv_epi8(v, max, _mm256_cmpgt_epi64(v, max));
+                    _mm256_blendv_epi8(v, min, _mm256_cmpgt_epi64(min, v))
+                };
+                let w0 = clamp(first);
+                let w1 = clamp(_mm256_sub_epi64(first, down));
+                let w2 = clamp(_mm256_sub_epi64(_mm256_sub_epi64(first, down), down));
+                let w3 = clamp(_mm256_sub_epi64(_mm256_sub_epi64(_mm256_sub_epi64(first, down), down), down));
+                // The low halves of two words' lanes as eight `i32` in lane order: the shuffle
+                // gives `a0 a1 b0 b1 | a2 a3 b2 b3`, the permute puts the pairs in order.
+                const LOW_HALVES: i32 = 0b10_00_10_00;
+                const PAIRS_IN_ORDER: i32 = 0b11_01_10_00;
+                let narrow = |a: __m256i, b: __m256i| {
+                    let (a, b) = (_mm256_castsi256_ps(a), _mm256_castsi256_ps(b));
+                    let mixed = _mm256_castps_si256(_mm256_shuffle_ps::<LOW_HALVES>(a, b));
+                    _mm256_permute4x64_epi64::<PAIRS_IN_ORDER>(mixed)
+                };
+                (narrow(w0, w1), narrow(w2, w3))
+            };
+            let mut t = [0i32; 16];
+            // SAFETY: `t` is 16 `i32`, the 2 x 32 bytes the stores write.
+            #[allow(unsafe_code, reason = "unaligned stores into an array of two registers' size")]
+            unsafe {
+                _mm256_storeu_si256(t.as_mut_ptr().cast(), t01);
+                _mm256_storeu_si256(t.as_mut_ptr().add(8).cast(), t23);
+            }
+            // The offsets of a pixel's 16 centres from its first (fit: `ExactLine32`; the
+            // same numbers as the SSE2 path's rows), subpixels 0-3 and 8-11 in one register
+            // and 4-7 and 12-15 in the other: each pack then keeps the subpixels' order.
+            let (step_x, step_y) = (_mm256_set1_epi32((line.a * SUB) as i32), _mm256_set1_epi32((line.b * SUB) as i32));
+            let columns = _mm256_mullo_epi32(step_x, _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3));
+            let rows_02 = _mm256_mullo_epi32(step_y, _mm256_setr_epi32(0, 0, 0, 0, 2, 2, 2, 2));
+            let rows_13 = _mm256_mullo_epi32(step_y, _mm256_setr_epi32(1, 1, 1, 1, 3, 3, 3, 3));
+            let (offsets_02, offsets_13) = (_mm256_add_epi32(columns, rows_02), _mm256_add_epi32(columns, rows_13));
+            // Per vertex pixel: its centres off the greater side, `offset < -E0`.
+            // The words in a register, each vertex pixel's set blended into its lane (in a
+            // register: sets stored as `u16` and read back as one load would miss the
+            // store-to-load forwarding).
+            // SAFETY: `words` is 32 bytes, a register's size.
+            #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
+            let mut w = unsafe { _mm256_loadu_si256(words.as_ptr().cast()) };
+            // `greater = !less`; LR = 0 keeps the other side.
+            let flip: u16 = if e.lr { 0 } else { u16::MAX };
+            let mut left = near;
+            while left != 0 {
+                let lane = left.trailing_zeros() as usize & 15;
+                left &= left - 1;
+                let value = _mm256_set1_epi32(t[lane]);
+                let (less_02, less_13) = (_mm256_cmpgt_epi32(value, offsets_02), _mm256_cmpgt_epi32(value, offsets_13));
+                let both = _mm256_packs_epi32(less_02, less_13);
+                let bytes = _mm_packs_epi16(_mm256_castsi256_si128(both), _mm256_extracti128_si256::<1>(both));
+                let set = !(_mm_movemask_epi8(bytes) as u16) ^ flip;
+                // SAFETY: `LANE_MASKS[lane]` is 16 `u16`, 32 bytes, a register's size.
+                #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
+                let chosen = unsafe { _mm256_loadu_si256(LANE_MASKS[lane].as_ptr().cast()) };
+                w = _mm256_blendv_epi8(w, _mm256_set1_epi16(set as i16), chosen);
+            }
+            let mut out = [0u64; 4];
+            // SAFETY: `out` is 32 bytes, a register's size.
+            #[allow(unsafe_code, reason = "an unaligned store into an array of a register's size")]
+            unsafe {
+                _mm256_storeu_si256(out.as_mut_ptr().cast(), w);
+            }
+            out
+        };
+        body($e, $px, $py, $vertical, $words)
+    }};
+}
+
 impl SubpixelProcessors {
     /// SPPs for a screen, with the given table.
     pub fn new(width: u32, height: u32, mode: SppMode) -> Self {
@@ -308,10 +424,11 @@ impl SubpixelProcessors {
     }
 
     /// [`Self::table_code_sse2`] compiled for AVX2, with the exact rule's vertex pixels
-    /// by [`vertex_words_avx2`] called directly, where [`vertex_words`] detects the
-    /// processor's features at every call and calls it (some 48 instructions a call
-    /// with its passing of the words, against about 190 for the AVX2 work itself).
-    /// The features are detected once, by [`SubpixelProcessors::new`].
+    /// by [`vertex_words_avx2`]'s body expanded in place ([`vertex_words_avx2_body`]),
+    /// where [`vertex_words`] detects the processor's features at every call and calls
+    /// it (some 48 instructions a call with its passing of the words, against about 190
+    /// for the AVX2 work itself; a direct call still cost about 40). The features are
+    /// detected once, by [`SubpixelProcessors::new`].
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,bmi1")]
     #[inline(never)]
@@ -327,7 +444,7 @@ impl SubpixelProcessors {
             counters,
             |v1, slope| line_indices_sse2(v1, slope),
             |line, px, py| near_end_cell_sse2(line, px, py),
-            |e, px, py, vertical, words| vertex_words_avx2(e, px, py, vertical, words),
+            |e, px, py, vertical, words| vertex_words_avx2_body!(e, px, py, vertical, words),
         )
     }
 
@@ -1032,7 +1149,9 @@ fn vertex_start(line: &ExactLine, px: u32, py: u32, vertical: bool) -> Option<Ve
 /// with its detection, at terrain's 3.6 vertex pixels a call. As in [`vertex_words_avx512`], the vertex pixels come
 /// in the words' order and -E at the first centre of all 16 pixels is made at once
 /// (four registers of 64-bit lanes, each clamped to 32 bits by two compares and
-/// blends, which is the SSE2 path's clamp, then narrowed and stored); per vertex
+/// blends, which is the SSE2 path's clamp, then narrowed and stored; or, when no
+/// value can leave 32 bits, as on every cell of `many`, two registers of 32-bit
+/// lanes with no clamp); per vertex
 /// pixel one broadcast of its value, two 8-lane compares against the 16 centres'
 /// offsets ([`ExactLine32`]) and two packs give its set, blended into its lane of
 /// the words (held in a register) under a mask read from a table.
@@ -1044,93 +1163,15 @@ fn vertex_start(line: &ExactLine, px: u32, py: u32, vertical: bool) -> Option<Ve
 ///
 /// Called directly from [`SubpixelProcessors::table_code_avx2`], so it takes every
 /// edge and cell: those the 32-bit paths do not take ([`EdgeCode::exact32`],
-/// [`CELL_LIMIT_32`]) go on to [`vertex_words`]. Out of line, as `vertex_words`.
+/// [`CELL_LIMIT_32`]) go on to [`vertex_words`]. This function (for [`vertex_words`]
+/// and the tests) is out of line, as `vertex_words`; `table_code_avx2` expands its
+/// body ([`vertex_words_avx2_body`]) inside its loop (on `many` 77 M instructions
+/// fewer at 960 x 540, terrain 6).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,bmi1")]
 #[inline(never)]
 fn vertex_words_avx2(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64; 4]) -> [u64; 4] {
-    if !e.exact32 || (px | py) >= CELL_LIMIT_32 {
-        return vertex_words(e, px, py, vertical, words);
-    }
-    use std::arch::x86_64::{
-        __m256i, _mm256_add_epi32, _mm256_blendv_epi8, _mm256_castps_si256, _mm256_castsi256_ps,
-        _mm256_castsi256_si128, _mm256_cmpgt_epi32, _mm256_cmpgt_epi64, _mm256_extracti128_si256, _mm256_loadu_si256,
-        _mm256_mullo_epi32, _mm256_packs_epi32, _mm256_permute4x64_epi64, _mm256_set1_epi16, _mm256_set1_epi32,
-        _mm256_set1_epi64x, _mm256_set_epi64x, _mm256_setr_epi32, _mm256_shuffle_ps, _mm256_storeu_si256,
-        _mm256_sub_epi64, _mm_movemask_epi8, _mm_packs_epi16,
-    };
-    const SUB: i64 = (SNAP_ONE / 4) as i64;
-    let line = &e.exact;
-    let Some(VertexStart { near, e_cell, per_lane, per_word }) = vertex_start(line, px, py, vertical) else {
-        return words;
-    };
-    // -E at each pixel's first centre, a word's four lanes a register (every term
-    // below 2^48: no overflow), clamped to 32 bits.
-    let first =
-        _mm256_sub_epi64(_mm256_set1_epi64x(-e_cell), _mm256_set_epi64x(3 * per_lane, 2 * per_lane, per_lane, 0));
-    let down = _mm256_set1_epi64x(per_word);
-    let (max, min) = (_mm256_set1_epi64x(i64::from(i32::MAX)), _mm256_set1_epi64x(i64::from(i32::MIN)));
-    let clamp = |v: __m256i| {
-        let v = _mm256_blendv_epi8(v, max, _mm256_cmpgt_epi64(v, max));
-        _mm256_blendv_epi8(v, min, _mm256_cmpgt_epi64(min, v))
-    };
-    let w0 = clamp(first);
-    let w1 = clamp(_mm256_sub_epi64(first, down));
-    let w2 = clamp(_mm256_sub_epi64(_mm256_sub_epi64(first, down), down));
-    let w3 = clamp(_mm256_sub_epi64(_mm256_sub_epi64(_mm256_sub_epi64(first, down), down), down));
-    // The low halves of two words' lanes as eight `i32` in lane order: the shuffle
-    // gives `a0 a1 b0 b1 | a2 a3 b2 b3`, the permute puts the pairs in order.
-    const LOW_HALVES: i32 = 0b10_00_10_00;
-    const PAIRS_IN_ORDER: i32 = 0b11_01_10_00;
-    let narrow = |a: __m256i, b: __m256i| {
-        let mixed =
-            _mm256_castps_si256(_mm256_shuffle_ps::<LOW_HALVES>(_mm256_castsi256_ps(a), _mm256_castsi256_ps(b)));
-        _mm256_permute4x64_epi64::<PAIRS_IN_ORDER>(mixed)
-    };
-    let mut t = [0i32; 16];
-    // SAFETY: `t` is 16 `i32`, the 2 x 32 bytes the stores write.
-    #[allow(unsafe_code, reason = "unaligned stores into an array of two registers' size")]
-    unsafe {
-        _mm256_storeu_si256(t.as_mut_ptr().cast(), narrow(w0, w1));
-        _mm256_storeu_si256(t.as_mut_ptr().add(8).cast(), narrow(w2, w3));
-    }
-    // The offsets of a pixel's 16 centres from its first (fit: `ExactLine32`; the
-    // same numbers as the SSE2 path's rows), subpixels 0-3 and 8-11 in one register
-    // and 4-7 and 12-15 in the other: each pack then keeps the subpixels' order.
-    let (step_x, step_y) = (_mm256_set1_epi32((line.a * SUB) as i32), _mm256_set1_epi32((line.b * SUB) as i32));
-    let columns = _mm256_mullo_epi32(step_x, _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3));
-    let rows_02 = _mm256_mullo_epi32(step_y, _mm256_setr_epi32(0, 0, 0, 0, 2, 2, 2, 2));
-    let rows_13 = _mm256_mullo_epi32(step_y, _mm256_setr_epi32(1, 1, 1, 1, 3, 3, 3, 3));
-    let (offsets_02, offsets_13) = (_mm256_add_epi32(columns, rows_02), _mm256_add_epi32(columns, rows_13));
-    // Per vertex pixel: its centres off the greater side, `offset < -E0`.
-    // The words in a register, each vertex pixel's set blended into its lane (in a
-    // register: sets stored as `u16` and read back as one load would miss the
-    // store-to-load forwarding).
-    // SAFETY: `words` is 32 bytes, a register's size.
-    #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
-    let mut w = unsafe { _mm256_loadu_si256(words.as_ptr().cast()) };
-    // `greater = !less`; LR = 0 keeps the other side.
-    let flip: u16 = if e.lr { 0 } else { u16::MAX };
-    let mut left = near;
-    while left != 0 {
-        let lane = left.trailing_zeros() as usize & 15;
-        left &= left - 1;
-        let value = _mm256_set1_epi32(t[lane]);
-        let both = _mm256_packs_epi32(_mm256_cmpgt_epi32(value, offsets_02), _mm256_cmpgt_epi32(value, offsets_13));
-        let bytes = _mm_packs_epi16(_mm256_castsi256_si128(both), _mm256_extracti128_si256::<1>(both));
-        let set = !(_mm_movemask_epi8(bytes) as u16) ^ flip;
-        // SAFETY: `LANE_MASKS[lane]` is 16 `u16`, 32 bytes, a register's size.
-        #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
-        let chosen = unsafe { _mm256_loadu_si256(LANE_MASKS[lane].as_ptr().cast()) };
-        w = _mm256_blendv_epi8(w, _mm256_set1_epi16(set as i16), chosen);
-    }
-    let mut out = [0u64; 4];
-    // SAFETY: `out` is 32 bytes, a register's size.
-    #[allow(unsafe_code, reason = "an unaligned store into an array of a register's size")]
-    unsafe {
-        _mm256_storeu_si256(out.as_mut_ptr().cast(), w);
-    }
-    out
+    vertex_words_avx2_body!(e, px, py, vertical, words)
 }
 
 /// [`vertex_words_avx2`]'s blend masks: entry `i` selects the 16-bit lane `i`.
