@@ -158,9 +158,9 @@ macro_rules! vertex_words_avx2_body {
             use std::arch::x86_64::{
                 __m256i, _mm256_add_epi32, _mm256_blendv_epi8, _mm256_castps_si256, _mm256_castsi256_ps,
                 _mm256_castsi256_si128, _mm256_cmpgt_epi32, _mm256_cmpgt_epi64, _mm256_extracti128_si256,
-                _mm256_loadu_si256, _mm256_mullo_epi32, _mm256_packs_epi32, _mm256_permute4x64_epi64,
+                _mm256_load_si256, _mm256_mullo_epi32, _mm256_packs_epi32, _mm256_permute4x64_epi64,
                 _mm256_set1_epi16, _mm256_set1_epi32, _mm256_set1_epi64x, _mm256_set_epi64x, _mm256_setr_epi32,
-                _mm256_shuffle_ps, _mm256_storeu_si256, _mm256_sub_epi32, _mm256_sub_epi64, _mm_movemask_epi8,
+                _mm256_shuffle_ps, _mm256_store_si256, _mm256_sub_epi32, _mm256_sub_epi64, _mm_movemask_epi8,
                 _mm_packs_epi16,
             };
             const SUB: i64 = (SNAP_ONE / 4) as i64;
@@ -170,12 +170,17 @@ macro_rules! vertex_words_avx2_body {
             };
             // -E at each pixel's first centre, lanes of words 0 and 1 in one register, of
             // words 2 and 3 in the other, each clamped to 32 bits.
-            let (t01, t23) = if e_cell.unsigned_abs() + 3 * (per_lane.unsigned_abs() + per_word.unsigned_abs())
-                <= i32::MAX as u64
-            {
-                // Every value (and every partial sum on the way to it) within 32 bits, so the
-                // clamp keeps it: 32-bit lanes from the start, about 10 instructions against
-                // some 45 for the 64-bit lanes below. (Tiny polygons' cells take this way.)
+            const E_LIMIT: i64 = 1 << 30;
+            const STEP_LIMIT: i64 = 1 << 27;
+            // `|E| <= 2^30` at pixel (0, 0) and `|per_lane|, |per_word| <= 2^27`, as unsigned
+            // compares (a sum of the two steps is below `2^28` only when both are).
+            let small = (((e_cell + E_LIMIT) as u64) < (2 * E_LIMIT) as u64)
+                & ((((per_lane + STEP_LIMIT) | (per_word + STEP_LIMIT)) as u64) < (2 * STEP_LIMIT) as u64);
+            let (t01, t23) = if small {
+                // Every value (and every partial sum on the way to it) within
+                // `2^30 + 6 * 2^27 < 2^31`, so the clamp keeps it: 32-bit lanes from the
+                // start, about 20 instructions with the check against some 45 for the
+                // 64-bit lanes below. (Every cell of `many` takes this way.)
                 let (per_lane, per_word) = (per_lane as i32, per_word as i32);
                 let steps = _mm256_add_epi32(
                     _mm256_mullo_epi32(_mm256_set1_epi32(per_lane), _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3)),
@@ -208,12 +213,15 @@ macro_rules! vertex_words_avx2_body {
                 };
                 (narrow(w0, w1), narrow(w2, w3))
             };
-            let mut t = [0i32; 16];
-            // SAFETY: `t` is 16 `i32`, the 2 x 32 bytes the stores write.
-            #[allow(unsafe_code, reason = "unaligned stores into an array of two registers' size")]
+            // Aligned (as the words and masks below): the compiler splits an unaligned
+            // 32-byte access in two.
+            let mut t = Aligned32([0i32; 16]);
+            // SAFETY: `t` is 16 `i32` aligned to 32 bytes, the 2 x 32 bytes the aligned
+            // stores write.
+            #[allow(unsafe_code, reason = "aligned stores into an array of two registers' size")]
             unsafe {
-                _mm256_storeu_si256(t.as_mut_ptr().cast(), t01);
-                _mm256_storeu_si256(t.as_mut_ptr().add(8).cast(), t23);
+                _mm256_store_si256(t.0.as_mut_ptr().cast(), t01);
+                _mm256_store_si256(t.0.as_mut_ptr().add(8).cast(), t23);
             }
             // The offsets of a pixel's 16 centres from its first (fit: `ExactLine32`; the
             // same numbers as the SSE2 path's rows), subpixels 0-3 and 8-11 in one register
@@ -227,32 +235,34 @@ macro_rules! vertex_words_avx2_body {
             // The words in a register, each vertex pixel's set blended into its lane (in a
             // register: sets stored as `u16` and read back as one load would miss the
             // store-to-load forwarding).
-            // SAFETY: `words` is 32 bytes, a register's size.
-            #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
-            let mut w = unsafe { _mm256_loadu_si256(words.as_ptr().cast()) };
+            let words = Aligned32(words);
+            // SAFETY: `words` is 32 bytes aligned to 32, a register's size.
+            #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
+            let mut w = unsafe { _mm256_load_si256(words.0.as_ptr().cast()) };
             // `greater = !less`; LR = 0 keeps the other side.
             let flip: u16 = if e.lr { 0 } else { u16::MAX };
             let mut left = near;
             while left != 0 {
                 let lane = left.trailing_zeros() as usize & 15;
                 left &= left - 1;
-                let value = _mm256_set1_epi32(t[lane]);
+                let value = _mm256_set1_epi32(t.0[lane]);
                 let (less_02, less_13) = (_mm256_cmpgt_epi32(value, offsets_02), _mm256_cmpgt_epi32(value, offsets_13));
                 let both = _mm256_packs_epi32(less_02, less_13);
                 let bytes = _mm_packs_epi16(_mm256_castsi256_si128(both), _mm256_extracti128_si256::<1>(both));
                 let set = !(_mm_movemask_epi8(bytes) as u16) ^ flip;
-                // SAFETY: `LANE_MASKS[lane]` is 16 `u16`, 32 bytes, a register's size.
-                #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
-                let chosen = unsafe { _mm256_loadu_si256(LANE_MASKS[lane].as_ptr().cast()) };
+                // SAFETY: `LANE_MASKS.0[lane]` is 16 `u16`, 32 bytes aligned to 32 (an
+                // aligned array of 32-byte rows), a register's size.
+                #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
+                let chosen = unsafe { _mm256_load_si256(LANE_MASKS.0[lane].as_ptr().cast()) };
                 w = _mm256_blendv_epi8(w, _mm256_set1_epi16(set as i16), chosen);
             }
-            let mut out = [0u64; 4];
-            // SAFETY: `out` is 32 bytes, a register's size.
-            #[allow(unsafe_code, reason = "an unaligned store into an array of a register's size")]
+            let mut out = Aligned32([0u64; 4]);
+            // SAFETY: `out` is 32 bytes aligned to 32, a register's size.
+            #[allow(unsafe_code, reason = "an aligned store into an array of a register's size")]
             unsafe {
-                _mm256_storeu_si256(out.as_mut_ptr().cast(), w);
+                _mm256_store_si256(out.0.as_mut_ptr().cast(), w);
             }
-            out
+            out.0
         };
         body($e, $px, $py, $vertical, $words)
     }};
@@ -987,6 +997,15 @@ fn near_end_cell(line: &ExactLine, px: u32, py: u32) -> bool {
     ends_near(line, px, py, CELL_SIDE)
 }
 
+/// [`near_end_cell`] out of line, for [`near_end_cell_sse2`]'s cells beyond its 32-bit
+/// numbers (none on a screen the model supports): inlined, its constants were made
+/// for every fragment of the AVX2 fragment code, some 10 instructions each.
+#[cold]
+#[inline(never)]
+fn near_end_cell_far(line: &ExactLine, px: u32, py: u32) -> bool {
+    near_end_cell(line, px, py)
+}
+
 /// [`near_end_cell`] in SSE2, the four coordinates at once: each `e - x0`, biased by
 /// `2^31` so that a signed compare asks the unsigned `<= SPAN`. In 32 bits the
 /// differences wrap, but with the cell below [`CELL_LIMIT_32`] (`x0 < 2^30`) a true
@@ -1000,7 +1019,7 @@ fn near_end_cell_sse2(line: &ExactLine, px: u32, py: u32) -> bool {
         _mm_castsi128_ps, _mm_cmpgt_epi32, _mm_movemask_ps, _mm_set1_epi32, _mm_set_epi32, _mm_sub_epi32,
     };
     if (px | py) >= CELL_LIMIT_32 {
-        return near_end_cell(line, px, py);
+        return near_end_cell_far(line, px, py);
     }
     const SPAN: i32 = CELL_SIDE as i32 * SNAP_ONE + 2 * VERTEX_MARGIN;
     let (x0, y0) = (px as i32 * SNAP_ONE - VERTEX_MARGIN, py as i32 * SNAP_ONE - VERTEX_MARGIN);
@@ -1176,15 +1195,22 @@ fn vertex_words_avx2(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64
 
 /// [`vertex_words_avx2`]'s blend masks: entry `i` selects the 16-bit lane `i`.
 #[cfg(target_arch = "x86_64")]
-static LANE_MASKS: [[u16; 16]; 16] = {
+static LANE_MASKS: Aligned32<[[u16; 16]; 16]> = {
     let mut m = [[0u16; 16]; 16];
     let mut i = 0;
     while i < 16 {
         m[i][i] = u16::MAX;
         i += 1;
     }
-    m
+    Aligned32(m)
 };
+
+/// A value aligned to 32 bytes, for the AVX2 copies' aligned loads and stores of a
+/// whole register: an unaligned one the compiler splits into two halves (its tuning
+/// for x86-64 in general), an instruction more each.
+#[cfg(target_arch = "x86_64")]
+#[repr(C, align(32))]
+struct Aligned32<T>(T);
 
 /// [`vertex_words_sse41`] in AVX-512: the same sets (tested), in about half its
 /// instructions. The vertex pixels come in the words' order (bit `4 word + lane`),
