@@ -171,6 +171,134 @@ fn line_indices_sse2(v1: i64, slope: i64) -> [usize; 4] {
     std::array::from_fn(|k| (packed >> (16 * k)) as usize & (ROW_PART_WORDS - 1))
 }
 
+/// The body of [`vertex_words_avx2`] as an immediately called closure, for
+/// [`SubpixelProcessors::table_code_avx2`] to expand in its own code: a closure takes
+/// the target features of the function it is written in, where `#[inline(always)]`
+/// is refused on a `#[target_feature]` function and `#[inline]` left a call (on
+/// `many` two calls a fragment, each some 40 instructions of passing the words,
+/// saving and reloading registers and checking again what the caller knew).
+#[cfg(target_arch = "x86_64")]
+macro_rules! vertex_words_avx2_body {
+    ($e:expr, $px:expr, $py:expr, $vertical:expr, $words:expr) => {{
+        let body = |e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64; 4]| -> [u64; 4] {
+            if !e.exact32 || (px | py) >= CELL_LIMIT_32 {
+                return vertex_words(e, px, py, vertical, words);
+            }
+            use std::arch::x86_64::{
+                __m256i, _mm256_add_epi32, _mm256_blendv_epi8, _mm256_castps_si256, _mm256_castsi256_ps,
+                _mm256_castsi256_si128, _mm256_cmpgt_epi32, _mm256_cmpgt_epi64, _mm256_extracti128_si256,
+                _mm256_load_si256, _mm256_mullo_epi32, _mm256_packs_epi32, _mm256_permute4x64_epi64,
+                _mm256_set1_epi16, _mm256_set1_epi32, _mm256_set1_epi64x, _mm256_set_epi64x, _mm256_setr_epi32,
+                _mm256_shuffle_ps, _mm256_store_si256, _mm256_sub_epi32, _mm256_sub_epi64, _mm_movemask_epi8,
+                _mm_packs_epi16,
+            };
+            const SUB: i64 = (SNAP_ONE / 4) as i64;
+            let line = &e.exact;
+            let near = vertex_near_avx2(line, px, py, vertical);
+            let Some(VertexStart { near, e_cell, per_lane, per_word }) = vertex_start_at(line, px, py, vertical, near)
+            else {
+                return words;
+            };
+            // -E at each pixel's first centre, lanes of words 0 and 1 in one register, of
+            // words 2 and 3 in the other, each clamped to 32 bits.
+            const E_LIMIT: i64 = 1 << 30;
+            const STEP_LIMIT: i64 = 1 << 27;
+            // `|E| <= 2^30` at pixel (0, 0) and `|per_lane|, |per_word| <= 2^27`, as unsigned
+            // compares (a sum of the two steps is below `2^28` only when both are).
+            let small = (((e_cell + E_LIMIT) as u64) < (2 * E_LIMIT) as u64)
+                & ((((per_lane + STEP_LIMIT) | (per_word + STEP_LIMIT)) as u64) < (2 * STEP_LIMIT) as u64);
+            let (t01, t23) = if small {
+                // Every value (and every partial sum on the way to it) within
+                // `2^30 + 6 * 2^27 < 2^31`, so the clamp keeps it: 32-bit lanes from the
+                // start, about 20 instructions with the check against some 45 for the
+                // 64-bit lanes below. (Every cell of `many` takes this way.)
+                let (per_lane, per_word) = (per_lane as i32, per_word as i32);
+                let steps = _mm256_add_epi32(
+                    _mm256_mullo_epi32(_mm256_set1_epi32(per_lane), _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3)),
+                    _mm256_mullo_epi32(_mm256_set1_epi32(per_word), _mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1)),
+                );
+                let t01 = _mm256_sub_epi32(_mm256_set1_epi32(-e_cell as i32), steps);
+                (t01, _mm256_sub_epi32(t01, _mm256_set1_epi32(2 * per_word)))
+            } else {
+                // A word's four lanes a register (every term below 2^48: no overflow).
+                let lanes = _mm256_set_epi64x(3 * per_lane, 2 * per_lane, per_lane, 0);
+                let first = _mm256_sub_epi64(_mm256_set1_epi64x(-e_cell), lanes);
+                let down = _mm256_set1_epi64x(per_word);
+                let (max, min) = (_mm256_set1_epi64x(i64::from(i32::MAX)), _mm256_set1_epi64x(i64::from(i32::MIN)));
+                let clamp = |v: __m256i| {
+                    let v = _mm256_blendv_epi8(v, max, _mm256_cmpgt_epi64(v, max));
+                    _mm256_blendv_epi8(v, min, _mm256_cmpgt_epi64(min, v))
+                };
+                let w0 = clamp(first);
+                let w1 = clamp(_mm256_sub_epi64(first, down));
+                let w2 = clamp(_mm256_sub_epi64(_mm256_sub_epi64(first, down), down));
+                let w3 = clamp(_mm256_sub_epi64(_mm256_sub_epi64(_mm256_sub_epi64(first, down), down), down));
+                // The low halves of two words' lanes as eight `i32` in lane order: the shuffle
+                // gives `a0 a1 b0 b1 | a2 a3 b2 b3`, the permute puts the pairs in order.
+                const LOW_HALVES: i32 = 0b10_00_10_00;
+                const PAIRS_IN_ORDER: i32 = 0b11_01_10_00;
+                let narrow = |a: __m256i, b: __m256i| {
+                    let (a, b) = (_mm256_castsi256_ps(a), _mm256_castsi256_ps(b));
+                    let mixed = _mm256_castps_si256(_mm256_shuffle_ps::<LOW_HALVES>(a, b));
+                    _mm256_permute4x64_epi64::<PAIRS_IN_ORDER>(mixed)
+                };
+                (narrow(w0, w1), narrow(w2, w3))
+            };
+            // Aligned (as the words and masks below): the compiler splits an unaligned
+            // 32-byte access in two.
+            let mut t = Aligned32([0i32; 16]);
+            // SAFETY: `t` is 16 `i32` aligned to 32 bytes, the 2 x 32 bytes the aligned
+            // stores write.
+            #[allow(unsafe_code, reason = "aligned stores into an array of two registers' size")]
+            unsafe {
+                _mm256_store_si256(t.0.as_mut_ptr().cast(), t01);
+                _mm256_store_si256(t.0.as_mut_ptr().add(8).cast(), t23);
+            }
+            // The offsets of a pixel's 16 centres from its first (fit: `ExactLine32`; the
+            // same numbers as the SSE2 path's rows), subpixels 0-3 and 8-11 in one register
+            // and 4-7 and 12-15 in the other: each pack then keeps the subpixels' order.
+            let (step_x, step_y) = (_mm256_set1_epi32((line.a * SUB) as i32), _mm256_set1_epi32((line.b * SUB) as i32));
+            let columns = _mm256_mullo_epi32(step_x, _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3));
+            let rows_02 = _mm256_mullo_epi32(step_y, _mm256_setr_epi32(0, 0, 0, 0, 2, 2, 2, 2));
+            let rows_13 = _mm256_mullo_epi32(step_y, _mm256_setr_epi32(1, 1, 1, 1, 3, 3, 3, 3));
+            let (offsets_02, offsets_13) = (_mm256_add_epi32(columns, rows_02), _mm256_add_epi32(columns, rows_13));
+            // Per vertex pixel: its centres off the greater side, `offset < -E0`.
+            // The words in a register, each vertex pixel's set blended into its lane (in a
+            // register: sets stored as `u16` and read back as one load would miss the
+            // store-to-load forwarding).
+            let words = Aligned32(words);
+            // SAFETY: `words` is 32 bytes aligned to 32, a register's size.
+            #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
+            let mut w = unsafe { _mm256_load_si256(words.0.as_ptr().cast()) };
+            // `greater = !less`; LR = 0 keeps the other side.
+            let flip: u16 = if e.lr { 0 } else { u16::MAX };
+            let mut left = near;
+            while left != 0 {
+                let lane = left.trailing_zeros() as usize & 15;
+                left &= left - 1;
+                let value = _mm256_set1_epi32(t.0[lane]);
+                let (less_02, less_13) = (_mm256_cmpgt_epi32(value, offsets_02), _mm256_cmpgt_epi32(value, offsets_13));
+                let both = _mm256_packs_epi32(less_02, less_13);
+                let bytes = _mm_packs_epi16(_mm256_castsi256_si128(both), _mm256_extracti128_si256::<1>(both));
+                let set = !(_mm_movemask_epi8(bytes) as u16) ^ flip;
+                // SAFETY: `LANE_MASKS.0[lane]` is 16 `u16`, 32 bytes aligned to 32 (an
+                // aligned array of 32-byte rows), a register's size.
+                #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
+                let chosen = unsafe { _mm256_load_si256(LANE_MASKS.0[lane].as_ptr().cast()) };
+                w = _mm256_blendv_epi8(w, _mm256_set1_epi16(set as i16), chosen);
+            }
+            let mut out = Aligned32([0u64; 4]);
+            // SAFETY: `out` is 32 bytes aligned to 32, a register's size.
+            #[allow(unsafe_code, reason = "an aligned store into an array of a register's size")]
+            unsafe {
+                _mm256_store_si256(out.0.as_mut_ptr().cast(), w);
+            }
+            out.0
+        };
+        body($e, $px, $py, $vertical, $words)
+    }};
+}
+
 impl SubpixelProcessors {
     /// SPPs for a screen, with the given table.
     pub fn new(width: u32, height: u32, mode: SppMode) -> Self {
@@ -353,10 +481,11 @@ impl SubpixelProcessors {
     }
 
     /// [`Self::table_code_sse2`] compiled for AVX2, with the exact rule's vertex pixels
-    /// by [`vertex_words_avx2`] called directly, where [`vertex_words`] detects the
-    /// processor's features at every call and calls it (some 48 instructions a call
-    /// with its passing of the words, against about 190 for the AVX2 work itself).
-    /// The features are detected once, by [`SubpixelProcessors::new`].
+    /// by [`vertex_words_avx2`]'s body expanded in place ([`vertex_words_avx2_body`]),
+    /// where [`vertex_words`] detects the processor's features at every call and calls
+    /// it (some 48 instructions a call with its passing of the words, against about 190
+    /// for the AVX2 work itself; a direct call still cost about 40). The features are
+    /// detected once, by [`SubpixelProcessors::new`].
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,bmi1")]
     #[inline(never)]
@@ -372,7 +501,7 @@ impl SubpixelProcessors {
             counters,
             |v1, slope| line_indices_sse2(v1, slope),
             |line, px, py| near_end_cell_sse2(line, px, py),
-            |e, px, py, vertical, words| vertex_words_avx2(e, px, py, vertical, words),
+            |e, px, py, vertical, words| vertex_words_avx2_body!(e, px, py, vertical, words),
         )
     }
 
@@ -915,6 +1044,15 @@ fn near_end_cell(line: &ExactLine, px: u32, py: u32) -> bool {
     ends_near(line, px, py, CELL_SIDE)
 }
 
+/// [`near_end_cell`] out of line, for [`near_end_cell_sse2`]'s cells beyond its 32-bit
+/// numbers (none on a screen the model supports): inlined, its constants were made
+/// for every fragment of the AVX2 fragment code, some 10 instructions each.
+#[cold]
+#[inline(never)]
+fn near_end_cell_far(line: &ExactLine, px: u32, py: u32) -> bool {
+    near_end_cell(line, px, py)
+}
+
 /// [`near_end_cell`] in SSE2, the four coordinates at once: each `e - x0`, biased by
 /// `2^31` so that a signed compare asks the unsigned `<= SPAN`. In 32 bits the
 /// differences wrap, but with the cell below [`CELL_LIMIT_32`] (`x0 < 2^30`) a true
@@ -928,7 +1066,7 @@ fn near_end_cell_sse2(line: &ExactLine, px: u32, py: u32) -> bool {
         _mm_castsi128_ps, _mm_cmpgt_epi32, _mm_movemask_ps, _mm_set1_epi32, _mm_set_epi32, _mm_sub_epi32,
     };
     if (px | py) >= CELL_LIMIT_32 {
-        return near_end_cell(line, px, py);
+        return near_end_cell_far(line, px, py);
     }
     const SPAN: i32 = CELL_SIDE as i32 * SNAP_ONE + 2 * VERTEX_MARGIN;
     let (x0, y0) = (px as i32 * SNAP_ONE - VERTEX_MARGIN, py as i32 * SNAP_ONE - VERTEX_MARGIN);
@@ -1057,9 +1195,15 @@ struct VertexStart {
 #[target_feature(enable = "sse4.1")]
 #[inline]
 fn vertex_start(line: &ExactLine, px: u32, py: u32, vertical: bool) -> Option<VertexStart> {
+    vertex_start_at(line, px, py, vertical, vertex_spread(vertex_windows_sse41(line, px, py), !vertical))
+}
+
+/// [`vertex_start`] with the vertex pixels `near` found (in the words' order).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn vertex_start_at(line: &ExactLine, px: u32, py: u32, vertical: bool, near: u16) -> Option<VertexStart> {
     const ONE: i64 = SNAP_ONE as i64;
     const HALF_SUB: i64 = (SNAP_ONE / 8) as i64;
-    let near = vertex_spread(vertex_windows_sse41(line, px, py), !vertical);
     if near == 0 {
         return None;
     }
@@ -1072,12 +1216,52 @@ fn vertex_start(line: &ExactLine, px: u32, py: u32, vertical: bool) -> Option<Ve
     Some(VertexStart { near, e_cell, per_lane, per_word })
 }
 
+/// The vertex pixels of [`vertex_start`] in AVX2 (tested), for cells and endpoints
+/// within [`VertexWindow::fits`]: with `t` a coordinate less the cell's first widened
+/// border, pixel `d` holds it when `0 <= t - d ONE <= ONE + 2 MARGIN`, one unsigned
+/// compare of the 32-bit difference (which wraps into that range only when it is
+/// there). Each endpoint's coordinate along the words and across them, four `d` a
+/// coordinate, are one register; its lanes' sign mask gives the endpoint's lane bits
+/// (low nibble) and word bits (high nibble). About 30 instructions against some 45
+/// for the window table's way.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,bmi1")]
+#[inline]
+fn vertex_near_avx2(line: &ExactLine, px: u32, py: u32, vertical: bool) -> u16 {
+    use std::arch::x86_64::{
+        _mm256_castsi128_si256, _mm256_castsi256_ps, _mm256_cmpeq_epi32, _mm256_min_epu32, _mm256_movemask_ps,
+        _mm256_permutevar8x32_epi32, _mm256_set1_epi32, _mm256_setr_epi32, _mm256_sub_epi32, _mm256_xor_si256,
+        _mm_set_epi32, _mm_sub_epi32,
+    };
+    const ONE: i32 = SNAP_ONE;
+    const SPAN: i32 = SNAP_ONE + 2 * VERTEX_MARGIN;
+    let (x0, y0) = (px as i32 * SNAP_ONE - VERTEX_MARGIN, py as i32 * SNAP_ONE - VERTEX_MARGIN);
+    let [(ax, ay), (bx, by)] = line.ends;
+    let t = _mm256_castsi128_si256(_mm_sub_epi32(_mm_set_epi32(by, bx, ay, ax), _mm_set_epi32(y0, x0, y0, x0)));
+    // Lanes 0-3 the coordinate along the lanes (x for a vertical edge, whose words are
+    // pixel rows), 4-7 the one along the words: `t` holds x, y, x, y.
+    let swap = _mm256_set1_epi32(i32::from(!vertical));
+    let first = _mm256_xor_si256(_mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1), swap);
+    let second = _mm256_xor_si256(_mm256_setr_epi32(2, 2, 2, 2, 3, 3, 3, 3), swap);
+    let steps = _mm256_setr_epi32(0, ONE, 2 * ONE, 3 * ONE, 0, ONE, 2 * ONE, 3 * ONE);
+    let bits = |index| {
+        let d = _mm256_sub_epi32(_mm256_permutevar8x32_epi32(t, index), steps);
+        let within = _mm256_cmpeq_epi32(_mm256_min_epu32(d, _mm256_set1_epi32(SPAN)), d);
+        _mm256_movemask_ps(_mm256_castsi256_ps(within)) as u32
+    };
+    // Word bit `w` to nibble `w` (bit `4 w`), times the four lane bits.
+    let pixels = |m: u32| (((m >> 4) * 0x249) & 0x1111) * (m & 0xF);
+    (pixels(bits(first)) | pixels(bits(second))) as u16
+}
+
 /// [`vertex_words_sse41`] in AVX2 for processors without AVX-512 (Zen 3): the same
 /// sets (tested), about 200 instructions a call against 256 for the SSE4.1 path
 /// with its detection, at terrain's 3.6 vertex pixels a call. As in [`vertex_words_avx512`], the vertex pixels come
-/// in the words' order and -E at the first centre of all 16 pixels is made at once
+/// in the words' order (by [`vertex_near_avx2`]) and -E at the first centre of all 16 pixels is made at once
 /// (four registers of 64-bit lanes, each clamped to 32 bits by two compares and
-/// blends, which is the SSE2 path's clamp, then narrowed and stored); per vertex
+/// blends, which is the SSE2 path's clamp, then narrowed and stored; or, when no
+/// value can leave 32 bits, as on every cell of `many`, two registers of 32-bit
+/// lanes with no clamp); per vertex
 /// pixel one broadcast of its value, two 8-lane compares against the 16 centres'
 /// offsets ([`ExactLine32`]) and two packs give its set, blended into its lane of
 /// the words (held in a register) under a mask read from a table.
@@ -1089,106 +1273,35 @@ fn vertex_start(line: &ExactLine, px: u32, py: u32, vertical: bool) -> Option<Ve
 ///
 /// Called directly from [`SubpixelProcessors::table_code_avx2`], so it takes every
 /// edge and cell: those the 32-bit paths do not take ([`EdgeCode::exact32`],
-/// [`CELL_LIMIT_32`]) go on to [`vertex_words`]. Out of line, as `vertex_words`.
+/// [`CELL_LIMIT_32`]) go on to [`vertex_words`]. This function (for [`vertex_words`]
+/// and the tests) is out of line, as `vertex_words`; `table_code_avx2` expands its
+/// body ([`vertex_words_avx2_body`]) inside its loop (on `many` 77 M instructions
+/// fewer at 960 x 540, terrain 6).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,bmi1")]
 #[inline(never)]
 fn vertex_words_avx2(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64; 4]) -> [u64; 4] {
-    if !e.exact32 || (px | py) >= CELL_LIMIT_32 {
-        return vertex_words(e, px, py, vertical, words);
-    }
-    use std::arch::x86_64::{
-        __m256i, _mm256_add_epi32, _mm256_blendv_epi8, _mm256_castps_si256, _mm256_castsi256_ps,
-        _mm256_castsi256_si128, _mm256_cmpgt_epi32, _mm256_cmpgt_epi64, _mm256_extracti128_si256, _mm256_loadu_si256,
-        _mm256_mullo_epi32, _mm256_packs_epi32, _mm256_permute4x64_epi64, _mm256_set1_epi16, _mm256_set1_epi32,
-        _mm256_set1_epi64x, _mm256_set_epi64x, _mm256_setr_epi32, _mm256_shuffle_ps, _mm256_storeu_si256,
-        _mm256_sub_epi64, _mm_movemask_epi8, _mm_packs_epi16,
-    };
-    const SUB: i64 = (SNAP_ONE / 4) as i64;
-    let line = &e.exact;
-    let Some(VertexStart { near, e_cell, per_lane, per_word }) = vertex_start(line, px, py, vertical) else {
-        return words;
-    };
-    // -E at each pixel's first centre, a word's four lanes a register (every term
-    // below 2^48: no overflow), clamped to 32 bits.
-    let first =
-        _mm256_sub_epi64(_mm256_set1_epi64x(-e_cell), _mm256_set_epi64x(3 * per_lane, 2 * per_lane, per_lane, 0));
-    let down = _mm256_set1_epi64x(per_word);
-    let (max, min) = (_mm256_set1_epi64x(i64::from(i32::MAX)), _mm256_set1_epi64x(i64::from(i32::MIN)));
-    let clamp = |v: __m256i| {
-        let v = _mm256_blendv_epi8(v, max, _mm256_cmpgt_epi64(v, max));
-        _mm256_blendv_epi8(v, min, _mm256_cmpgt_epi64(min, v))
-    };
-    let w0 = clamp(first);
-    let w1 = clamp(_mm256_sub_epi64(first, down));
-    let w2 = clamp(_mm256_sub_epi64(_mm256_sub_epi64(first, down), down));
-    let w3 = clamp(_mm256_sub_epi64(_mm256_sub_epi64(_mm256_sub_epi64(first, down), down), down));
-    // The low halves of two words' lanes as eight `i32` in lane order: the shuffle
-    // gives `a0 a1 b0 b1 | a2 a3 b2 b3`, the permute puts the pairs in order.
-    const LOW_HALVES: i32 = 0b10_00_10_00;
-    const PAIRS_IN_ORDER: i32 = 0b11_01_10_00;
-    let narrow = |a: __m256i, b: __m256i| {
-        let mixed =
-            _mm256_castps_si256(_mm256_shuffle_ps::<LOW_HALVES>(_mm256_castsi256_ps(a), _mm256_castsi256_ps(b)));
-        _mm256_permute4x64_epi64::<PAIRS_IN_ORDER>(mixed)
-    };
-    let mut t = [0i32; 16];
-    // SAFETY: `t` is 16 `i32`, the 2 x 32 bytes the stores write.
-    #[allow(unsafe_code, reason = "unaligned stores into an array of two registers' size")]
-    unsafe {
-        _mm256_storeu_si256(t.as_mut_ptr().cast(), narrow(w0, w1));
-        _mm256_storeu_si256(t.as_mut_ptr().add(8).cast(), narrow(w2, w3));
-    }
-    // The offsets of a pixel's 16 centres from its first (fit: `ExactLine32`; the
-    // same numbers as the SSE2 path's rows), subpixels 0-3 and 8-11 in one register
-    // and 4-7 and 12-15 in the other: each pack then keeps the subpixels' order.
-    let (step_x, step_y) = (_mm256_set1_epi32((line.a * SUB) as i32), _mm256_set1_epi32((line.b * SUB) as i32));
-    let columns = _mm256_mullo_epi32(step_x, _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3));
-    let rows_02 = _mm256_mullo_epi32(step_y, _mm256_setr_epi32(0, 0, 0, 0, 2, 2, 2, 2));
-    let rows_13 = _mm256_mullo_epi32(step_y, _mm256_setr_epi32(1, 1, 1, 1, 3, 3, 3, 3));
-    let (offsets_02, offsets_13) = (_mm256_add_epi32(columns, rows_02), _mm256_add_epi32(columns, rows_13));
-    // Per vertex pixel: its centres off the greater side, `offset < -E0`.
-    // The words in a register, each vertex pixel's set blended into its lane (in a
-    // register: sets stored as `u16` and read back as one load would miss the
-    // store-to-load forwarding).
-    // SAFETY: `words` is 32 bytes, a register's size.
-    #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
-    let mut w = unsafe { _mm256_loadu_si256(words.as_ptr().cast()) };
-    // `greater = !less`; LR = 0 keeps the other side.
-    let flip: u16 = if e.lr { 0 } else { u16::MAX };
-    let mut left = near;
-    while left != 0 {
-        let lane = left.trailing_zeros() as usize & 15;
-        left &= left - 1;
-        let value = _mm256_set1_epi32(t[lane]);
-        let both = _mm256_packs_epi32(_mm256_cmpgt_epi32(value, offsets_02), _mm256_cmpgt_epi32(value, offsets_13));
-        let bytes = _mm_packs_epi16(_mm256_castsi256_si128(both), _mm256_extracti128_si256::<1>(both));
-        let set = !(_mm_movemask_epi8(bytes) as u16) ^ flip;
-        // SAFETY: `LANE_MASKS[lane]` is 16 `u16`, 32 bytes, a register's size.
-        #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
-        let chosen = unsafe { _mm256_loadu_si256(LANE_MASKS[lane].as_ptr().cast()) };
-        w = _mm256_blendv_epi8(w, _mm256_set1_epi16(set as i16), chosen);
-    }
-    let mut out = [0u64; 4];
-    // SAFETY: `out` is 32 bytes, a register's size.
-    #[allow(unsafe_code, reason = "an unaligned store into an array of a register's size")]
-    unsafe {
-        _mm256_storeu_si256(out.as_mut_ptr().cast(), w);
-    }
-    out
+    vertex_words_avx2_body!(e, px, py, vertical, words)
 }
 
 /// [`vertex_words_avx2`]'s blend masks: entry `i` selects the 16-bit lane `i`.
 #[cfg(target_arch = "x86_64")]
-static LANE_MASKS: [[u16; 16]; 16] = {
+static LANE_MASKS: Aligned32<[[u16; 16]; 16]> = {
     let mut m = [[0u16; 16]; 16];
     let mut i = 0;
     while i < 16 {
         m[i][i] = u16::MAX;
         i += 1;
     }
-    m
+    Aligned32(m)
 };
+
+/// A value aligned to 32 bytes, for the AVX2 copies' aligned loads and stores of a
+/// whole register: an unaligned one the compiler splits into two halves (its tuning
+/// for x86-64 in general), an instruction more each.
+#[cfg(target_arch = "x86_64")]
+#[repr(C, align(32))]
+struct Aligned32<T>(T);
 
 /// [`vertex_words_sse41`] in AVX-512: the same sets (tested), in about half its
 /// instructions. The vertex pixels come in the words' order (bit `4 word + lane`),
@@ -1444,6 +1557,53 @@ mod tests {
             let ends = [(coordinate(px), coordinate(py)), (coordinate(px), coordinate(py))];
             let line = ExactLine { a: 1, b: 0, c: 0, ends };
             assert_eq!(vertex_pixels_fast(&line, px, py), vertex_pixels(&line, px, py), "{ends:?} ({px}, {py})");
+        }
+    }
+
+    /// [`vertex_near_avx2`] is the window table's vertex pixels ([`vertex_start`]) in
+    /// the words' order, and [`vertex_pixels`] (transposed for a horizontal edge):
+    /// endpoints in, around and far from the cell, on the widened borders and one unit
+    /// either side, anywhere in the 32-bit paths' range.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn vertex_near_avx2_is_vertex_pixels() {
+        if !has_avx2() {
+            return;
+        }
+        let mut next = xorshift(0x0A11_2E4D_5EED_0B0E);
+        let one = i64::from(SNAP_ONE);
+        let limit = i64::from(EXACT32_END_LIMIT);
+        let transpose = |p: u16| (0..16).fold(0u16, |t, i| t | (p >> i & 1) << (4 * (i & 3) + (i >> 2)));
+        for k in 0..200_000 {
+            let (px, py) = match k % 4 {
+                0 => (4 * next(i64::from(CELL_LIMIT_32) / 4) as u32, 4 * next(i64::from(CELL_LIMIT_32) / 4) as u32),
+                _ => (4 * next(2048) as u32, 4 * next(2048) as u32),
+            };
+            let mut coordinate = |p: u32| -> i32 {
+                let near = i64::from(p) * one + next(8 * one) - 2 * one;
+                let v = match k % 5 {
+                    0 => near - near.rem_euclid(one / 2) + next(3) - 1,
+                    1 => next(2 * limit - 2) - limit + 1,
+                    _ => near,
+                };
+                v.clamp(-limit + 1, limit - 1) as i32
+            };
+            let ends = [(coordinate(px), coordinate(py)), (coordinate(px), coordinate(py))];
+            let line = ExactLine { a: 1, b: 0, c: 0, ends };
+            assert!(VertexWindow::fits(&line, px, py));
+            let plain = vertex_pixels(&line, px, py);
+            for vertical in [false, true] {
+                // SAFETY: the processor has what `has_avx2` asks (and the SSE4.1 it implies).
+                #[allow(unsafe_code, reason = "functions compiled for AVX2 and SSE4.1, after detection")]
+                let (got, table) = unsafe {
+                    (
+                        vertex_near_avx2(&line, px, py, vertical),
+                        vertex_start(&line, px, py, vertical).map_or(0, |s| s.near),
+                    )
+                };
+                assert_eq!(got, table, "{ends:?} ({px}, {py}) vertical {vertical}");
+                assert_eq!(got, if vertical { plain } else { transpose(plain) }, "{ends:?} ({px}, {py})");
+            }
         }
     }
 
