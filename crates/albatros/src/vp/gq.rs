@@ -559,7 +559,17 @@ impl CellProcessors {
     ///
     /// The cells [`Self::descend_filling`] queued on their own levels join the cells
     /// climbing through those levels (their subtrees are marked already).
+    #[inline]
     pub fn mark_covered_cells(&mut self, cells: &mut Vec<usize>) {
+        // Most polygons cover no cell wholly (all of `many`'s but a few): no call.
+        if !cells.is_empty() || self.queued != 0 {
+            self.mark_queued_cells(cells);
+        }
+    }
+
+    /// [`Self::mark_covered_cells`]' work, out of line.
+    #[inline(never)]
+    fn mark_queued_cells(&mut self, cells: &mut Vec<usize>) {
         let mut k = self.root_level;
         // Levels `k` and above with queued cells: `queued & below(k)`.
         let below = |k: u32| (2u32 << k).wrapping_sub(1);
