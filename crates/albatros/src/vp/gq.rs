@@ -441,7 +441,8 @@ pub struct Fragment<'a> {
     pub bbox: [u32; 4],
 }
 
-/// A [`Fragment::bbox`] that clips nothing.
+/// A [`Fragment::bbox`] that clips nothing: for fragments with no edge (cells wholly
+/// inside their polygon, so inside its box) and for tests.
 pub const NO_BOX: [u32; 4] = [0, u32::MAX, 0, u32::MAX];
 
 /// [`Fragment::cells`] of a fragment of the one cell at its `(px, py)`.
@@ -1351,30 +1352,6 @@ mod tests {
         }
     }
 
-    /// The SPPs' window on a polygon's box ([`box_pixels`](super::super::spp::box_pixels)) is
-    /// the cell's pixels inside the box, pixel by pixel: boxes around, across and
-    /// inside a cell, empty and not, near the screen's origin and far from it.
-    #[test]
-    fn box_pixels_are_the_pixels_in_the_box() {
-        use super::super::spp::box_pixels;
-        for (px, py) in [(0u32, 0u32), (4, 8), (1000, 516)] {
-            for x0 in px.saturating_sub(2)..px + 7 {
-                for x1 in x0..px + 8 {
-                    for (y0, y1) in [(0, u32::MAX), (py + 1, py + 3), (py, py + 4), (py + 3, py + 9), (py + 5, py + 9)]
-                    {
-                        let bbox = [x0, x1, y0, y1];
-                        let want = (0..16).fold(0u16, |w, i| {
-                            let (x, y) = (px + (i & 3), py + (i >> 2));
-                            w | u16::from(x >= x0 && x < x1 && y >= y0 && y < y1) << i
-                        });
-                        assert_eq!(box_pixels(px, py, bbox), want, "cell ({px}, {py}), box {bbox:?}");
-                    }
-                }
-            }
-        }
-        assert_eq!(box_pixels(8, 4, NO_BOX), 0xFFFF);
-    }
-
     /// [`children_in_box`] is the children whose pixel squares meet the box: every
     /// box of a 32-pixel square around cells of sides 2-16.
     #[test]
@@ -1503,7 +1480,7 @@ mod tests {
             state ^= state << 17;
             state % n
         };
-        let (mut checked, mut dropped, mut sized) = (0, 0, 0);
+        let (mut checked, mut dropped, mut sized, mut stray) = (0, 0, 0, 0);
         for k in 0..3000 {
             let Some((edges, bbox, p)) = random_triangle(k, root_side, &mut next) else {
                 continue;
@@ -1543,7 +1520,8 @@ mod tests {
             }
             assert_eq!(got, want, "triangle {p:?}");
             assert_eq!(counted, want, "counting, triangle {p:?}");
-            dropped += filled_drops_only_empty(&filled, &want, &edges, bbox, &format!("triangle {p:?}"));
+            let (d, s) = filled_drops_only_empty(&filled, &want, &edges, bbox, &format!("triangle {p:?}"));
+            (dropped, stray) = (dropped + d, stray + s);
             checked += 1;
         }
         assert!(checked > 2500);
@@ -1554,32 +1532,27 @@ mod tests {
         // cells those descents leave out hold subpixels of the row tables' AND past
         // the box (134, over the three modes): without the clip they would be lost.
         assert!(sized > 500, "{sized}");
-        assert!(STRAY.with(|s| s.get()) > 20);
-    }
-
-    std::thread_local! {
-        /// Cells [`filled_drops_only_empty`] saw dropped whose codes are empty only
-        /// by the clip to the polygon's box (per SPP mode).
-        static STRAY: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+        assert!(stray > 20, "{stray}");
     }
 
     /// The filling descent's fragments `filled` are the plain descent's `want`, in the
     /// same order, less some whose codes (clipped to `bbox`) are empty in every SPP
     /// mode (the cells [`band_closed`] drops, and those outside the cells a start at
-    /// the polygon's size descends): returns how many.
+    /// the polygon's size descends): returns how many, and how many times (over the
+    /// modes) such a cell's code is empty only by the clip to the box.
     fn filled_drops_only_empty(
         filled: &[(u32, u32, Vec<ActiveEdge>)],
         want: &[(u32, u32, Vec<ActiveEdge>)],
         edges: &[EdgeCode],
         bbox: [u32; 4],
         what: &str,
-    ) -> usize {
+    ) -> (usize, usize) {
         use super::super::spp::SubpixelProcessors;
         use super::super::tables::SppMode;
         let spps = [SppMode::Area, SppMode::Sample, SppMode::Exact].map(|mode| SubpixelProcessors::new(4, 4, mode));
         let mut counters = Counters::new(0);
         let mut rest = filled.iter().peekable();
-        let mut dropped = 0;
+        let (mut dropped, mut stray) = (0, 0);
         for w in want {
             if rest.peek() == Some(&w) {
                 rest.next();
@@ -1590,14 +1563,12 @@ mod tests {
                 let code = spp.fragment_code::<false>(&frag, edges, &mut counters);
                 assert_eq!(code, [0; 16], "{what}: {:?} dropped the cell ({}, {}) of {:?}", spp.mode, w.0, w.1, w.2);
                 let unclipped = spp.fragment_code::<false>(&Fragment { bbox: NO_BOX, ..frag }, edges, &mut counters);
-                if unclipped != [0; 16] {
-                    STRAY.with(|s| s.set(s.get() + 1));
-                }
+                stray += usize::from(unclipped != [0; 16]);
             }
             dropped += 1;
         }
         assert_eq!(rest.next(), None, "{what}: a fragment the plain descent has not");
-        dropped
+        (dropped, stray)
     }
 
     /// With every level's mask in use and opaque triangles drawn one over another

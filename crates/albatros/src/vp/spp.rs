@@ -1445,6 +1445,29 @@ pub fn thinning(t: u8) -> [u16; 16] {
 mod tests {
     use super::*;
 
+    /// The SPPs' window on a polygon's box ([`box_pixels`]) is
+    /// the cell's pixels inside the box, pixel by pixel: boxes around, across and
+    /// inside a cell, empty and not, near the screen's origin and far from it.
+    #[test]
+    fn box_pixels_are_the_pixels_in_the_box() {
+        for (px, py) in [(0u32, 0u32), (4, 8), (1000, 516)] {
+            for x0 in px.saturating_sub(2)..px + 7 {
+                for x1 in x0..px + 8 {
+                    for (y0, y1) in [(0, u32::MAX), (py + 1, py + 3), (py, py + 4), (py + 3, py + 9), (py + 5, py + 9)]
+                    {
+                        let bbox = [x0, x1, y0, y1];
+                        let want = (0..16).fold(0u16, |w, i| {
+                            let (x, y) = (px + (i & 3), py + (i >> 2));
+                            w | u16::from(x >= x0 && x < x1 && y >= y0 && y < y1) << i
+                        });
+                        assert_eq!(box_pixels(px, py, bbox), want, "cell ({px}, {py}), box {bbox:?}");
+                    }
+                }
+            }
+        }
+        assert_eq!(box_pixels(8, 4, super::super::gq::NO_BOX), 0xFFFF);
+    }
+
     /// Marsaglia's xorshift64: `next(n)` is a deterministic number in `0..n`.
     fn xorshift(mut state: u64) -> impl FnMut(i64) -> i64 {
         move |n| {
