@@ -480,11 +480,14 @@ fn share_cells(
 /// The pixel bounding box `[x0, x1) x [y0, y1)` of a polygon, inside the screen.
 pub fn bbox(verts: &[crate::frame::ScreenVertex], width: u32, height: u32) -> [u32; 4] {
     let (mut x0, mut x1, mut y0, mut y1) = (f32::MAX, f32::MIN, f32::MAX, f32::MIN);
+    // Comparisons rather than `f32::min` and `max`: the same values (a NaN
+    // coordinate is passed over either way), one `minss` or `maxss` each rather than
+    // three instructions (~3 % of `many`'s VP went to this box).
     for v in verts {
-        x0 = x0.min(v.x);
-        x1 = x1.max(v.x);
-        y0 = y0.min(v.y);
-        y1 = y1.max(v.y);
+        x0 = if v.x < x0 { v.x } else { x0 };
+        x1 = if v.x > x1 { v.x } else { x1 };
+        y0 = if v.y < y0 { v.y } else { y0 };
+        y1 = if v.y > y1 { v.y } else { y1 };
     }
     // A subpixel set may reach one pixel beyond the exact box (rounding to half a
     // subpixel), so widen by one pixel each way.
