@@ -108,7 +108,9 @@ pub struct SubpixelProcessors {
     /// Pixels of the share on the screen (not pre-masked): each gets exactly one
     /// first write per frame.
     open_pixels: u64,
-    thin: Vec<[u16; 16]>,
+    /// The thinning patterns ([`thinning`]) of the 64 transparency codes: an array,
+    /// so that a code masked to 6 bits needs no bounds check.
+    thin: Box<[[u16; 16]; 64]>,
     /// The processor has what [`Self::table_code_avx2`] is compiled for
     /// ([`has_avx2`]) and no AVX-512 (whose vertex pixels [`vertex_words`] takes):
     /// detected once here, a check per fragment cost some 20 instructions of the
@@ -147,10 +149,21 @@ fn line_indices_portable(v1: i64, slope: i64) -> [usize; 4] {
 #[target_feature(enable = "sse2")]
 #[inline]
 fn line_indices_sse2(v1: i64, slope: i64) -> [usize; 4] {
+    let packed = std::arch::x86_64::_mm_cvtsi128_si64(line_index_lanes_sse2(v1, slope)) as u64;
+    std::array::from_fn(|k| (packed >> (16 * k)) as usize & (ROW_PART_WORDS - 1))
+}
+
+/// [`line_indices_sse2`]'s indices as they are made, in the low four 16-bit lanes of
+/// a register: each at most `(ROW_Q_COUNT - 1) (ROW_Q_COUNT + 1)`, below
+/// `ROW_ENTRIES` (the clamp's), for the AVX2 fragment code to read one at a time.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "sse2")]
+#[inline]
+fn line_index_lanes_sse2(v1: i64, slope: i64) -> std::arch::x86_64::__m128i {
     use std::arch::x86_64::{
-        _mm_add_epi16, _mm_add_epi64, _mm_castps_si128, _mm_castsi128_ps, _mm_cvtsi128_si64, _mm_max_epi16,
-        _mm_min_epi16, _mm_mullo_epi16, _mm_packs_epi32, _mm_set1_epi16, _mm_set1_epi64x, _mm_set_epi64x,
-        _mm_shuffle_ps, _mm_srli_epi64, _mm_srli_si128, _mm_sub_epi16,
+        _mm_add_epi16, _mm_add_epi64, _mm_castps_si128, _mm_castsi128_ps, _mm_max_epi16, _mm_min_epi16,
+        _mm_mullo_epi16, _mm_packs_epi32, _mm_set1_epi16, _mm_set1_epi64x, _mm_set_epi64x, _mm_shuffle_ps,
+        _mm_srli_epi64, _mm_srli_si128, _mm_sub_epi16,
     };
     const SHIFT: i32 = (EDGE_FRAC_BITS - SPP_V_BITS) as i32;
     const HALF: i64 = 1 << (SHIFT - 1);
@@ -166,9 +179,7 @@ fn line_indices_sse2(v1: i64, slope: i64) -> [usize; 4] {
     let q = _mm_packs_epi32(q0123, l45);
     let q = _mm_min_epi16(_mm_max_epi16(q, _mm_set1_epi16(ROW_Q_MIN as i16)), _mm_set1_epi16(ROW_Q_MAX as i16));
     let line = _mm_sub_epi16(q, _mm_set1_epi16(ROW_Q_MIN as i16));
-    let index = _mm_add_epi16(_mm_mullo_epi16(line, _mm_set1_epi16(ROW_Q_COUNT as i16)), _mm_srli_si128::<2>(line));
-    let packed = _mm_cvtsi128_si64(index) as u64;
-    std::array::from_fn(|k| (packed >> (16 * k)) as usize & (ROW_PART_WORDS - 1))
+    _mm_add_epi16(_mm_mullo_epi16(line, _mm_set1_epi16(ROW_Q_COUNT as i16)), _mm_srli_si128::<2>(line))
 }
 
 /// The body of [`vertex_words_avx2`] as an immediately called closure, for
@@ -176,13 +187,17 @@ fn line_indices_sse2(v1: i64, slope: i64) -> [usize; 4] {
 /// the target features of the function it is written in, where `#[inline(always)]`
 /// is refused on a `#[target_feature]` function and `#[inline]` left a call (on
 /// `many` two calls a fragment, each some 40 instructions of passing the words,
-/// saving and reloading registers and checking again what the caller knew).
+/// saving and reloading registers and checking again what the caller knew). It takes
+/// and gives the edge's four words in a register (`$words`, a `__m256i`): given and
+/// taken as `[u64; 4]`, the compiler stored the words as two 16-byte halves and the
+/// caller read them back as one 32-byte load, which no store forwarded (6 % of
+/// `process_avx2`'s time on default).
 #[cfg(target_arch = "x86_64")]
 macro_rules! vertex_words_avx2_body {
     ($e:expr, $px:expr, $py:expr, $vertical:expr, $words:expr) => {{
-        let body = |e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64; 4]| -> [u64; 4] {
+        let body = |e: &EdgeCode, px: u32, py: u32, vertical: bool, w: std::arch::x86_64::__m256i| {
             if !e.exact32 || (px | py) >= CELL_LIMIT_32 {
-                return vertex_words(e, px, py, vertical, words);
+                return vertex_words_far(e, px, py, vertical, w);
             }
             use std::arch::x86_64::{
                 __m256i, _mm256_add_epi32, _mm256_blendv_epi8, _mm256_castps_si256, _mm256_castsi256_ps,
@@ -197,7 +212,7 @@ macro_rules! vertex_words_avx2_body {
             let near = vertex_near_avx2(line, px, py, vertical);
             let Some(VertexStart { near, e_cell, per_lane, per_word }) = vertex_start_at(line, px, py, vertical, near)
             else {
-                return words;
+                return w;
             };
             // -E at each pixel's first centre, lanes of words 0 and 1 in one register, of
             // words 2 and 3 in the other, each clamped to 32 bits.
@@ -266,10 +281,7 @@ macro_rules! vertex_words_avx2_body {
             // The words in a register, each vertex pixel's set blended into its lane (in a
             // register: sets stored as `u16` and read back as one load would miss the
             // store-to-load forwarding).
-            let words = Aligned32(words);
-            // SAFETY: `words` is 32 bytes aligned to 32, a register's size.
-            #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
-            let mut w = unsafe { _mm256_load_si256(words.0.as_ptr().cast()) };
+            let mut w = w;
             // `greater = !less`; LR = 0 keeps the other side.
             let flip: u16 = if e.lr { 0 } else { u16::MAX };
             let mut left = near;
@@ -287,16 +299,147 @@ macro_rules! vertex_words_avx2_body {
                 let chosen = unsafe { _mm256_load_si256(LANE_MASKS.0[lane].as_ptr().cast()) };
                 w = _mm256_blendv_epi8(w, _mm256_set1_epi16(set as i16), chosen);
             }
-            let mut out = Aligned32([0u64; 4]);
-            // SAFETY: `out` is 32 bytes aligned to 32, a register's size.
-            #[allow(unsafe_code, reason = "an aligned store into an array of a register's size")]
-            unsafe {
-                _mm256_store_si256(out.0.as_mut_ptr().cast(), w);
-            }
-            out.0
+            w
         };
         body($e, $px, $py, $vertical, $words)
     }};
+}
+
+/// [`vertex_words`] of words in a register, for [`vertex_words_avx2_body`]'s edges and
+/// cells beyond its 32-bit numbers (rare: none on `many`, default or terrain).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[cold]
+#[inline(never)]
+fn vertex_words_far(
+    e: &EdgeCode,
+    px: u32,
+    py: u32,
+    vertical: bool,
+    w: std::arch::x86_64::__m256i,
+) -> std::arch::x86_64::__m256i {
+    use std::arch::x86_64::{_mm256_load_si256, _mm256_store_si256};
+    let mut words = Aligned32([0u64; 4]);
+    // SAFETY: `words` is 32 bytes aligned to 32, a register's size.
+    #[allow(unsafe_code, reason = "an aligned store into an array of a register's size")]
+    unsafe {
+        _mm256_store_si256(words.0.as_mut_ptr().cast(), w);
+    }
+    let out = Aligned32(vertex_words(e, px, py, vertical, words.0));
+    // SAFETY: `out` is 32 bytes aligned to 32, a register's size.
+    #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
+    unsafe {
+        _mm256_load_si256(out.0.as_ptr().cast())
+    }
+}
+
+/// The AVX2 fragment code before the clip to the box ([`SubpixelProcessors::edge_code`]),
+/// as an immediately called closure (the way of [`vertex_words_avx2_body`]) for
+/// [`SubpixelProcessors::table_code_avx2`] and [`SubpixelProcessors::process_avx2`] to
+/// expand in their own code: the code of [`SubpixelProcessors::table_code`] with the
+/// pixel rows and columns held in two registers, a register each per edge's four
+/// words, ANDed into one of them with no branch (`rows &= w | across`, `columns &=
+/// w | !across`, `across` all ones for a horizontal edge). In general registers, the
+/// words ANDed into the array an edge's TG chose through a pointer: the compiler kept
+/// both arrays in memory, and their 8-byte stores were read back as 16-byte loads for
+/// the transpose, which no store forwarded (on Zen 3 some 12 % of the function's
+/// time stood on that one load). The columns are transposed by a byte shuffle and a
+/// dword permute ([`transpose_words`] in registers), and the code is `rows &
+/// columns`, bit `16 (4 y + x)` the pixel `(x, y)`'s set.
+#[cfg(target_arch = "x86_64")]
+macro_rules! table_code_avx2_body {
+    ($spp:expr, $frag:expr, $edges:expr) => {{
+        let body = |spp: &SubpixelProcessors, frag: &Fragment, edges: &[EdgeCode]| -> std::arch::x86_64::__m256i {
+            use std::arch::x86_64::{
+                _mm256_and_si256, _mm256_andnot_si256, _mm256_cmpeq_epi8, _mm256_or_si256, _mm256_permutevar8x32_epi32,
+                _mm256_set1_epi64x, _mm256_set1_epi8, _mm256_set_epi64x, _mm256_setr_epi32, _mm256_setr_epi8,
+                _mm256_setzero_si256, _mm256_shuffle_epi8, _mm256_xor_si256, _mm_extract_epi16,
+            };
+            let ones = _mm256_set1_epi64x(-1);
+            let (mut rows, mut columns) = (ones, ones);
+            // Both parts looked up once a fragment rather than once an edge.
+            let (part_v, part_h) = (spp.row_table.part(Tg::Vertical), spp.row_table.part(Tg::Horizontal));
+            for a in frag.active {
+                let e = &edges[a.edge as usize];
+                let vertical = e.tg == Tg::Vertical;
+                let index = line_index_lanes_sse2(a.v1.0, e.slope.0);
+                let part = if vertical { part_v } else { part_h };
+                // The edge's sets, a word per pixel line along it (LR = 0: complements).
+                // Four loads rather than a gather (`vpgatherqq`): as fast on Zen 3 in
+                // time, though counted as one instruction.
+                let word = |k: usize| part[k & (ROW_PART_WORDS - 1)] as i64;
+                let read = _mm256_set_epi64x(
+                    word(_mm_extract_epi16::<3>(index) as usize),
+                    word(_mm_extract_epi16::<2>(index) as usize),
+                    word(_mm_extract_epi16::<1>(index) as usize),
+                    word(_mm_extract_epi16::<0>(index) as usize),
+                );
+                let flip = _mm256_cmpeq_epi8(_mm256_set1_epi8(i8::from(e.lr)), _mm256_setzero_si256());
+                let mut w = _mm256_xor_si256(read, flip);
+                // The pixels of this cell near an endpoint of the edge, where the exact
+                // rule replaces the table.
+                if spp.vertex_exact && near_end_cell_sse2(&e.exact, frag.px, frag.py) {
+                    w = vertex_words_avx2_body!(e, frag.px, frag.py, vertical, w);
+                }
+                // `rows &= !(!w & along)` and `columns &= w | along`, `along` all ones for
+                // a vertical edge.
+                let along = _mm256_cmpeq_epi8(_mm256_set1_epi8(e.tg as i8), _mm256_set1_epi8(Tg::Vertical as i8));
+                rows = _mm256_andnot_si256(_mm256_andnot_si256(w, along), rows);
+                columns = _mm256_and_si256(columns, _mm256_or_si256(w, along));
+            }
+            // Columns to rows: set `(x, y)` from 16-bit lane `4 x + y` to `4 y + x`. In
+            // each 128-bit half (columns `x` and `x + 1`) the shuffle puts lane `4 x + y`
+            // at `2 y + x`, so dword `y` of a half is row `y`'s two sets there; the
+            // permute takes row `y`'s dwords `y` and `4 + y` of the two halves in turn.
+            const B: [i8; 16] = [0, 1, 8, 9, 2, 3, 10, 11, 4, 5, 12, 13, 6, 7, 14, 15];
+            let by_row = _mm256_setr_epi8(
+                B[0], B[1], B[2], B[3], B[4], B[5], B[6], B[7], B[8], B[9], B[10], B[11], B[12], B[13], B[14], B[15],
+                B[0], B[1], B[2], B[3], B[4], B[5], B[6], B[7], B[8], B[9], B[10], B[11], B[12], B[13], B[14], B[15],
+            );
+            let halves = _mm256_setr_epi32(0, 4, 1, 5, 2, 6, 3, 7);
+            let columns = _mm256_permutevar8x32_epi32(_mm256_shuffle_epi8(columns, by_row), halves);
+            _mm256_and_si256(rows, columns)
+        };
+        body($spp, $frag, $edges)
+    }};
+}
+
+/// The pixels of `pixels` (bit `4 y + x`) as 16-bit lanes of all ones, the others 0.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn pixel_lanes_avx2(pixels: u16) -> std::arch::x86_64::__m256i {
+    use std::arch::x86_64::{_mm256_and_si256, _mm256_cmpeq_epi16, _mm256_set1_epi16, _mm256_setr_epi16};
+    #[allow(clippy::cast_possible_wrap, reason = "bit 15 as an i16")]
+    let bits = _mm256_setr_epi16(
+        1,
+        1 << 1,
+        1 << 2,
+        1 << 3,
+        1 << 4,
+        1 << 5,
+        1 << 6,
+        1 << 7,
+        1 << 8,
+        1 << 9,
+        1 << 10,
+        1 << 11,
+        1 << 12,
+        1 << 13,
+        1 << 14,
+        (1u16 << 15) as i16,
+    );
+    _mm256_cmpeq_epi16(_mm256_and_si256(_mm256_set1_epi16(pixels as i16), bits), bits)
+}
+
+/// The pixels (bit `4 y + x`) whose 16-bit lane is all ones, the lanes all ones or
+/// 0: the signed pack keeps -1 and 0, one byte a lane, and the byte mask reads them.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn lane_bits_avx2(lanes: std::arch::x86_64::__m256i) -> u16 {
+    use std::arch::x86_64::{_mm256_castsi256_si128, _mm256_extracti128_si256, _mm_movemask_epi8, _mm_packs_epi16};
+    _mm_movemask_epi8(_mm_packs_epi16(_mm256_castsi256_si128(lanes), _mm256_extracti128_si256::<1>(lanes))) as u16
 }
 
 impl SubpixelProcessors {
@@ -318,7 +461,7 @@ impl SubpixelProcessors {
             open_pixels: 0,
             cleared_share: None,
             clean: false,
-            thin: (0..64).map(thinning).collect(),
+            thin: Box::new(std::array::from_fn(|t| thinning(t as u8))),
             avx2: has_avx2() && !has_avx512(),
         };
         s.clear();
@@ -480,8 +623,9 @@ impl SubpixelProcessors {
         )
     }
 
-    /// [`Self::table_code_sse2`] compiled for AVX2, with the exact rule's vertex pixels
-    /// by [`vertex_words_avx2`]'s body expanded in place ([`vertex_words_avx2_body`]),
+    /// [`Self::table_code_sse2`] compiled for AVX2, its rows and columns in registers
+    /// ([`table_code_avx2_body`]), with the exact rule's vertex pixels by
+    /// [`vertex_words_avx2`]'s body expanded in place ([`vertex_words_avx2_body`]),
     /// where [`vertex_words`] detects the processor's features at every call and calls
     /// it (some 48 instructions a call with its passing of the words, against about 190
     /// for the AVX2 work itself; a direct call still cost about 40). The features are
@@ -495,14 +639,18 @@ impl SubpixelProcessors {
         edges: &[EdgeCode],
         counters: &mut Counters,
     ) -> [u16; 16] {
-        self.table_code::<STATS>(
-            frag,
-            edges,
-            counters,
-            |v1, slope| line_indices_sse2(v1, slope),
-            |line, px, py| near_end_cell_sse2(line, px, py),
-            |e, px, py, vertical, words| vertex_words_avx2_body!(e, px, py, vertical, words),
-        )
+        use std::arch::x86_64::_mm256_store_si256;
+        let code = table_code_avx2_body!(self, frag, edges);
+        let mut out = Aligned32([0u16; 16]);
+        // SAFETY: `out` is 32 bytes aligned to 32, a register's size.
+        #[allow(unsafe_code, reason = "an aligned store into an array of a register's size")]
+        unsafe {
+            _mm256_store_si256(out.0.as_mut_ptr().cast(), code);
+        }
+        if STATS {
+            counters.spp.edge_lookups += 16 * frag.active.len() as u64;
+        }
+        out.0
     }
 
     /// The table modes' fragment code, with `line_indices` giving an edge's four
@@ -585,8 +733,33 @@ impl SubpixelProcessors {
     }
 
     /// Processes one fragment of a polygon with transparency code `t`: returns the
-    /// visible subpixels and updates the mask memory.
+    /// visible subpixels and updates the mask memory. Only the dispatch is inlined:
+    /// with AVX2 (and a table mode) the whole step is [`Self::process_avx2`], one call
+    /// a fragment from the VP's loop; otherwise [`Self::process_plain`].
+    #[inline]
     pub fn process<const STATS: bool>(
+        &mut self,
+        frag: &Fragment,
+        edges: &[EdgeCode],
+        t: u8,
+        counters: &mut Counters,
+    ) -> Visible {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 && self.mode != SppMode::Exact {
+            // SAFETY: `process_avx2` only needs the features `has_avx2` found the
+            // processor to have when `self` was made (`avx2` is set nowhere else).
+            #[allow(unsafe_code, reason = "a function compiled for AVX2, after detection")]
+            unsafe {
+                return self.process_avx2::<STATS>(frag, edges, t, counters);
+            }
+        }
+        self.process_plain::<STATS>(frag, edges, t, counters)
+    }
+
+    /// [`Self::process`] by its definition: the fragment code ([`Self::fragment_code`]),
+    /// then the mask memory step ([`Self::apply`]).
+    #[inline(never)]
+    fn process_plain<const STATS: bool>(
         &mut self,
         frag: &Fragment,
         edges: &[EdgeCode],
@@ -602,12 +775,115 @@ impl SubpixelProcessors {
         vis
     }
 
+    /// [`Self::process_plain`] of a table mode in AVX2, the same visible sets, mask
+    /// memory and counts (tested): the code in a register ([`table_code_avx2_body`]),
+    /// clipped to the box by a compare of the window's bits, and the mask step on it
+    /// ([`Self::apply_avx2`]). Through memory, the code (stored as 16 `u16`, the box
+    /// clip's stores of odd sizes, read back as 16-byte loads) missed the store
+    /// forwarding: some 20 % of `process`'s time stood on one load; and the call
+    /// chain `process` → `table_code_avx2` was two calls a fragment.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,bmi1")]
+    #[inline(never)]
+    fn process_avx2<const STATS: bool>(
+        &mut self,
+        frag: &Fragment,
+        edges: &[EdgeCode],
+        t: u8,
+        counters: &mut Counters,
+    ) -> Visible {
+        use std::arch::x86_64::_mm256_and_si256;
+        let mut code = table_code_avx2_body!(&*self, frag, edges);
+        let window = box_pixels(frag.px, frag.py, frag.bbox);
+        if window != ALL_PIXELS {
+            code = _mm256_and_si256(code, pixel_lanes_avx2(window));
+        }
+        let (vis, pixels) = self.apply_avx2::<STATS>(frag.px, frag.py, code, t);
+        if STATS {
+            counters.spp.edge_lookups += 16 * frag.active.len() as u64;
+            let on_screen = (self.width - frag.px).min(CELL_SIDE) * (self.height - frag.py).min(CELL_SIDE);
+            counters.count_spp_pixels(pixels.count_ones(), on_screen);
+        }
+        vis
+    }
+
     /// [`Self::process`] of a fragment that no edge crosses (a cell wholly inside its
     /// polygon: every pixel's code is [`FULL`]), with counting off: no look-ups, and
-    /// the same visible sets and mask memory (tested against `process`).
-    #[inline(never)]
+    /// the same visible sets and mask memory (tested against `process`). Only the
+    /// dispatch is inlined, to [`Self::inside_avx2`] or [`Self::inside_plain`].
+    #[inline]
     pub fn inside(&mut self, px: u32, py: u32, t: u8) -> Visible {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: `inside_avx2` only needs the features `has_avx2` found the
+            // processor to have when `self` was made (`avx2` is set nowhere else).
+            #[allow(unsafe_code, reason = "a function compiled for AVX2, after detection")]
+            unsafe {
+                return self.inside_avx2(px, py, t);
+            }
+        }
+        self.inside_plain(px, py, t)
+    }
+
+    /// [`Self::inside`] by its definition: [`Self::apply`] of an all-ones code.
+    #[inline(never)]
+    fn inside_plain(&mut self, px: u32, py: u32, t: u8) -> Visible {
         self.apply::<false>(px, py, &[FULL; 16], t).0
+    }
+
+    /// [`Self::inside_plain`] in AVX2 ([`Self::apply_avx2`]; tested).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline(never)]
+    fn inside_avx2(&mut self, px: u32, py: u32, t: u8) -> Visible {
+        self.apply_avx2::<false>(px, py, std::arch::x86_64::_mm256_set1_epi16(-1), t).0
+    }
+
+    /// [`Self::apply`] in AVX2 with the code in a register: the cell's 16 pixels are one
+    /// register's lanes, the first writes and the pixels with a visible subpixel a
+    /// compare with zero and a pack each ([`lane_bits_avx2`]), the cover one `vptest`.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn apply_avx2<const STATS: bool>(
+        &mut self,
+        px: u32,
+        py: u32,
+        code: std::arch::x86_64::__m256i,
+        t: u8,
+    ) -> (Visible, u16) {
+        use std::arch::x86_64::{
+            __m256i, _mm256_and_si256, _mm256_andnot_si256, _mm256_cmpeq_epi16, _mm256_loadu_si256, _mm256_or_si256,
+            _mm256_set1_epi16, _mm256_setzero_si256, _mm256_store_si256, _mm256_storeu_si256, _mm256_testc_si256,
+        };
+        let thin: *const __m256i = self.thin[usize::from(t & 63)].as_ptr().cast();
+        let cell = (py / CELL_SIDE) as usize * self.stride + (px / CELL_SIDE) as usize;
+        let mask_ptr: *mut __m256i = self.masks[cell].as_mut_ptr().cast();
+        // SAFETY: a pattern and a cell's mask are 16 `u16`, the 32 bytes each
+        // unaligned load reads (and the store writes back).
+        #[allow(unsafe_code, reason = "unaligned loads of arrays of a register's size")]
+        let (thin, mask) = unsafe { (_mm256_loadu_si256(thin), _mm256_loadu_si256(mask_ptr)) };
+        let visible = _mm256_andnot_si256(mask, _mm256_and_si256(code, thin));
+        let now = _mm256_or_si256(mask, visible);
+        // SAFETY: as the load of `mask` above.
+        #[allow(unsafe_code, reason = "an unaligned store into an array of a register's size")]
+        unsafe {
+            _mm256_storeu_si256(mask_ptr, now);
+        }
+        let zero = _mm256_setzero_si256();
+        let none = _mm256_cmpeq_epi16(visible, zero);
+        // First writes: pixels empty before with a visible subpixel now.
+        let first = lane_bits_avx2(_mm256_andnot_si256(none, _mm256_cmpeq_epi16(mask, zero)));
+        // Covered: `!now & ones` is zero.
+        let covered = _mm256_testc_si256(now, _mm256_set1_epi16(-1)) != 0;
+        let pixels = if STATS { !lane_bits_avx2(none) } else { 0 };
+        let mut sets = Aligned32([0u16; 16]);
+        // SAFETY: `sets` is 32 bytes aligned to 32, a register's size.
+        #[allow(unsafe_code, reason = "an aligned store into an array of a register's size")]
+        unsafe {
+            _mm256_store_si256(sets.0.as_mut_ptr().cast(), visible);
+        }
+        (Visible { px, py, sets: sets.0, first, covered }, pixels)
     }
 
     /// The mask memory step of [`Self::process`] for the cell at pixel `(px, py)`
@@ -1281,7 +1557,19 @@ fn vertex_near_avx2(line: &ExactLine, px: u32, py: u32, vertical: bool) -> u16 {
 #[target_feature(enable = "avx2,bmi1")]
 #[inline(never)]
 fn vertex_words_avx2(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64; 4]) -> [u64; 4] {
-    vertex_words_avx2_body!(e, px, py, vertical, words)
+    use std::arch::x86_64::{_mm256_load_si256, _mm256_store_si256};
+    let words = Aligned32(words);
+    // SAFETY: `words` is 32 bytes aligned to 32, a register's size.
+    #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
+    let w = unsafe { _mm256_load_si256(words.0.as_ptr().cast()) };
+    let w = vertex_words_avx2_body!(e, px, py, vertical, w);
+    let mut out = Aligned32([0u64; 4]);
+    // SAFETY: `out` is 32 bytes aligned to 32, a register's size.
+    #[allow(unsafe_code, reason = "an aligned store into an array of a register's size")]
+    unsafe {
+        _mm256_store_si256(out.0.as_mut_ptr().cast(), w);
+    }
+    out.0
 }
 
 /// [`vertex_words_avx2`]'s blend masks: entry `i` selects the 16-bit lane `i`.
@@ -2032,6 +2320,81 @@ mod tests {
                 vertex_words,
             );
             assert_eq!(got, want, "case {k}");
+        }
+    }
+
+    /// [`SubpixelProcessors::process`] (on a processor with AVX2, its AVX2 copy) is
+    /// [`SubpixelProcessors::process_plain`]: the same visible sets, first writes,
+    /// cover, mask memory and counts, over random edges through and around random
+    /// cells (vertex pixels, steep and long lines), boxes that clip the cell or not,
+    /// masks empty, full or anything, every transparency code, both table modes,
+    /// cells at a screen's ragged right and bottom borders, counting on and off.
+    #[test]
+    fn process_is_process_plain() {
+        use super::super::edge::{EdgeCode, ScreenFx};
+        use super::super::gq::{ActiveEdge, NO_BOX};
+        let mut next = xorshift(0x0F0F_5EED_A5A5_1234);
+        // Per level (screens up to 1024 pixels) and mode, two SPP sets fed alike.
+        let mut sets: Vec<Option<(SubpixelProcessors, SubpixelProcessors)>> = (0..18).map(|_| None).collect();
+        for k in 0..30_000 {
+            let level = (k / 2 % 9) as u32;
+            let root_side = 4u32 << level;
+            let mode = [SppMode::Area, SppMode::Sample][k % 2];
+            let (a, b) = sets[k % 18].get_or_insert_with(|| {
+                let (w, h) = (root_side - 1, (root_side - 3).max(1));
+                (SubpixelProcessors::new(w, h, mode), SubpixelProcessors::new(w, h, mode))
+            });
+            let vertex_exact = k % 5 != 1;
+            (a.vertex_exact, b.vertex_exact) = (vertex_exact, vertex_exact);
+            let cells = i64::from(root_side / CELL_SIDE);
+            let (px, py) = (4 * next(cells) as u32, 4 * next(cells) as u32);
+            let one = i64::from(SNAP_ONE);
+            let span = i64::from(root_side) * one;
+            let n = next(5) as usize;
+            let mut point = |near: bool| {
+                let (x, y) = if near {
+                    (i64::from(px) * one + next(12 * one) - 4 * one, i64::from(py) * one + next(12 * one) - 4 * one)
+                } else {
+                    (next(span + 1), next(span + 1))
+                };
+                (ScreenFx(x.clamp(0, span) as i32), ScreenFx(y.clamp(0, span) as i32))
+            };
+            let edges: Vec<EdgeCode> =
+                (0..n).filter_map(|i| EdgeCode::new(point(i % 2 == 0), point(true), i % 3 == 0, root_side)).collect();
+            let active: Vec<ActiveEdge> = edges
+                .iter()
+                .enumerate()
+                .map(|(i, e)| ActiveEdge::at_cell(i as u32, e, i64::from(px), i64::from(py), 4))
+                .collect();
+            let bbox = if next(3) == 0 {
+                NO_BOX
+            } else {
+                let mut side = |p: u32| {
+                    let lo = (i64::from(p) + next(9) - 6).max(0) as u32;
+                    [lo, lo + next(10) as u32]
+                };
+                let ([x0, x1], [y0, y1]) = (side(px), side(py));
+                [x0, x1, y0, y1]
+            };
+            let frag = Fragment { px, py, active: &active, cells: super::super::gq::ONE_CELL, bbox };
+            let cell = (py / CELL_SIDE) as usize * a.stride + (px / CELL_SIDE) as usize;
+            let mask: [u16; 16] = std::array::from_fn(|_| match next(5) {
+                0 => 0,
+                1 => FULL,
+                _ => next(1 << 16) as u16,
+            });
+            let mask = [[0; 16], [FULL; 16], mask][(next(8) as usize).min(2)];
+            (a.masks[cell], b.masks[cell]) = (mask, mask);
+            let t = if k % 3 == 0 { 0 } else { next(64) as u8 };
+            let (mut ca, mut cb) = (Counters::new(level), Counters::new(level));
+            let (got, want) = if k % 4 == 0 {
+                (a.process::<true>(&frag, &edges, t, &mut ca), b.process_plain::<true>(&frag, &edges, t, &mut cb))
+            } else {
+                (a.process::<false>(&frag, &edges, t, &mut ca), b.process_plain::<false>(&frag, &edges, t, &mut cb))
+            };
+            assert_eq!(got, want, "case {k}: mode {mode:?}, cell ({px}, {py}), box {bbox:?}, edges {edges:?}");
+            assert_eq!(a.masks[cell], b.masks[cell], "case {k}");
+            assert_eq!(ca, cb, "case {k}");
         }
     }
 
