@@ -1535,8 +1535,9 @@ const SOFTPLUS_LANE_MAX: i32 = SOFTPLUS_PADDED as i32 - 2;
 /// encoder ROM's entries by windows of the table placed at the first visible pixel,
 /// near colours being the common case); then unless every visible pixel of the half
 /// is a whole first fragment (stored as its codes, as [`accumulate_log`] does), eq.
-/// 3 and 4 in lanes ([`f1_lanes_avx2`]). Rows of the half are stored whole, or their
-/// visible pixels one by one.
+/// 3 and 4 in lanes ([`f1_lanes_avx2!`]). Rows of the half are stored whole, or their
+/// visible pixels one by one. Each half is its own copy of the code
+/// ([`f1_half_avx2`]).
 ///
 /// Measured (callgrind, default at 1920 x 1080, one thread): the windows placed at a
 /// pixel rather than at the least address over the lanes (a reduction and a test
@@ -1544,7 +1545,11 @@ const SOFTPLUS_LANE_MAX: i32 = SOFTPLUS_PADDED as i32 - 2;
 /// 157.7 M instructions (F1 had been ~465 instructions a cell); inside the CC's
 /// function ([`F1Avx2`]), 154.3 M. The cell's masks and bounds once rather than per
 /// half and row cost 1 M alone but save 0.7 M inside the CC's function (the
-/// per-half form there: 155.0 M).
+/// per-half form there: 155.0 M). A copy per half rather than a loop over the
+/// halves (session 10): default 153.7 → 148.3 M, terrain 241.2 → 226.5 M. Dropped
+/// then: a row with a later fragment, loaded for eq. 4, blended with the new words
+/// and stored whole instead of its visible pixels one by one (default 145.1 →
+/// 147.6 M, terrain 220.4 → 225.5 M: the loaded words kept alive to the stores).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
@@ -1577,59 +1582,157 @@ fn accumulate_log8_avx2(
     let last = (u32::BITS - 1 - visible.leading_zeros()) as usize / SIDE;
     let start = py * width + px;
     let cell = &mut codes[start..start + last * width + cols];
-    for half in 0..2 {
-        let lanes = visible >> (8 * half) & 0xFF;
+    // The halves one after the other, each its own copy of the code with its
+    // lanes' shifts and register halves known at compile time (a loop over the
+    // halves kept them in registers and the F1 registers on the stack).
+    if visible & 0xFF != 0 {
+        f1_half_avx2::<0>(cell, width, cols, vis, colors, f1, encoder, sets, hidden, visible, done);
+    }
+    if visible >> 8 != 0 {
+        f1_half_avx2::<1>(cell, width, cols, vis, colors, f1, encoder, sets, hidden, visible, done);
+    }
+}
+
+/// `f1_lanes_avx2!(word, stored, sets, first, later, f1)`: eq. 3 and 4 of half a
+/// cell in lanes (a whole first fragment's result is its code): the codes `word`
+/// ([`Word8`]s) weighed by `ln S` (the subpixel counts of `sets` through the `ln S`
+/// table, permuted from two registers, no gather), summed with the `stored` words in
+/// the `later` lanes (`ln(1 + e^x)` by a gather), and stored ([`LogArith::store`]);
+/// `first`, `later`: a bit per lane; the value, the half's new words.
+///
+/// A macro, so that its body is expanded inside [`f1_half_avx2`] and takes that
+/// function's target feature: as an `#[inline]` function with two callers (one
+/// per half) the compiler left it out of line, its registers passed through
+/// memory (terrain's colour + VB 226.5 → 230.6 M instructions).
+#[cfg(target_arch = "x86_64")]
+macro_rules! f1_lanes_avx2 {
+    ($word:expr, $stored:expr, $sets:expr, $first:expr, $later:expr, $f1:expr) => {{
+        let (word, stored, sets, first, later, f1): (__m256i, __m256i, __m256i, u32, u32, &LogF1) =
+            ($word, $stored, $sets, $first, $later, $f1);
+        let lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+        let ln_s = {
+            let index =
+                _mm256_and_si256(_mm256_sub_epi32(popcount16_avx2(sets), _mm256_set1_epi32(1)), _mm256_set1_epi32(15));
+            // The 16 entries in two registers, each permuted by the index's
+            // low 3 bits, the one its bit 3 names kept (no gather).
+            let (low, high): (&[i32; 8], &[i32; 8]) =
+                (f1.ln_area[..8].try_into().expect("8 entries"), f1.ln_area[8..].try_into().expect("8 entries"));
+            // SAFETY: `low` and `high` are 8 `i32` each, the 32 bytes each load reads.
+            #[allow(unsafe_code, reason = "unaligned loads of arrays of a register's size")]
+            let (low, high) =
+                unsafe { (_mm256_loadu_si256(low.as_ptr().cast()), _mm256_loadu_si256(high.as_ptr().cast())) };
+            _mm256_blendv_epi8(
+                _mm256_permutevar8x32_epi32(low, index),
+                _mm256_permutevar8x32_epi32(high, index),
+                _mm256_cmpgt_epi32(index, _mm256_set1_epi32(7)),
+            )
+        };
+        let first_lanes = _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(first as i32), lane_bits), lane_bits);
+        let arith = f1.arith;
+        let mut out = _mm256_setzero_si256();
+        for shift in [0, 8, 16] {
+            let count = _mm_cvtsi32_si128(shift);
+            let byte = _mm256_set1_epi32(0xFF);
+            let mut v = _mm256_add_epi32(from_code_avx2(_mm256_and_si256(_mm256_srl_epi32(word, count), byte)), ln_s);
+            if later != 0 {
+                let s = from_code_avx2(_mm256_and_si256(_mm256_srl_epi32(stored, count), byte));
+                let (hi, lo) = (_mm256_max_epi32(v, s), _mm256_min_epi32(v, s));
+                let d = _mm256_min_epi32(_mm256_sub_epi32(hi, lo), _mm256_set1_epi32(SOFTPLUS_LANE_MAX));
+                // SAFETY: `d` is `0 ..= SOFTPLUS_PADDED - 2` (a difference max
+                // - min, clamped), so the 4 bytes read at entry `d` are entries
+                // `d` and `d + 1` of the padded table.
+                #[allow(
+                    unsafe_code,
+                    reason = "a gather from the padded ln(1 + e^x) table, the index clamped inside it"
+                )]
+                let t = unsafe { _mm256_i32gather_epi32::<2>(arith.softplus.as_ptr().cast::<i32>(), d) };
+                let sum = _mm256_add_epi32(hi, _mm256_and_si256(t, _mm256_set1_epi32(0xFFFF)));
+                v = _mm256_blendv_epi8(sum, v, first_lanes);
+            }
+            // `LogArith::store`.
+            let rounded = _mm256_srai_epi32::<2>(_mm256_add_epi32(
+                _mm256_add_epi32(v, _mm256_set1_epi32(FINE_PER_CODE / 2 - 1)),
+                _mm256_and_si256(_mm256_srai_epi32::<2>(v), _mm256_set1_epi32(1)),
+            ));
+            let code = _mm256_min_epi32(_mm256_max_epi32(rounded, _mm256_set1_epi32(1)), _mm256_set1_epi32(arith.one));
+            let kept = _mm256_cmpgt_epi32(v, _mm256_set1_epi32(arith.floor - 1));
+            out = _mm256_or_si256(out, _mm256_sll_epi32(_mm256_and_si256(code, kept), count));
+        }
+        out
+    }};
+}
+
+/// Half `HALF` (pixels `8 HALF .. 8 HALF + 8`, rows `2 HALF` and `2 HALF + 1`) of
+/// [`accumulate_log8_avx2`], which has a visible pixel: its codes, then eq. 3 and 4
+/// unless every visible pixel is a whole first fragment, then its rows' stores.
+/// `cell`: the cell's rows in one slice; `sets`, `hidden`: the cell's 16 sets and
+/// their zero compares; `visible`, `done`: bits of the cell's pixels.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+#[allow(clippy::too_many_arguments, reason = "the cell's registers, passed as they are")]
+fn f1_half_avx2<const HALF: usize>(
+    cell: &mut [Word8],
+    width: usize,
+    cols: usize,
+    vis: &Visible,
+    colors: &CellColors,
+    f1: &LogF1,
+    encoder: Encoder8Tables,
+    sets: __m256i,
+    hidden: __m256i,
+    visible: u32,
+    done: u32,
+) {
+    const SIDE: usize = CELL_SIDE as usize;
+    let lanes = visible >> (8 * HALF) & 0xFF;
+    let hidden = _mm256_cvtepi16_epi32(if HALF == 0 {
+        _mm256_castsi256_si128(hidden)
+    } else {
+        _mm256_extracti128_si256::<1>(hidden)
+    });
+    // The first visible pixel's colour places the ROM's windows.
+    let lane = (8 * HALF + lanes.trailing_zeros() as usize) & 15;
+    let anchor = [colors.rgb[0][lane], colors.rgb[1][lane], colors.rgb[2][lane]];
+    let mut word = encode8_rgb_avx2(load_colors_half(colors, HALF), hidden, anchor, encoder.entries);
+    if done >> (8 * HALF) & 0xFF != lanes {
+        let first = u32::from(vis.first) >> (8 * HALF) & 0xFF;
+        let later = lanes & !first;
+        let mut stored = _mm256_setzero_si256();
+        for row in 0..2 {
+            if later >> (4 * row) & 0xF == 0 {
+                continue;
+            }
+            // Row `2 HALF + row` has a visible pixel, so it is in `cell`.
+            let at = (2 * HALF + row) * width;
+            let words = load_row(&cell[at..at + cols]);
+            stored = if row == 0 {
+                _mm256_inserti128_si256::<0>(stored, words)
+            } else {
+                _mm256_inserti128_si256::<1>(stored, words)
+            };
+        }
+        let half_sets = if HALF == 0 { _mm256_castsi256_si128(sets) } else { _mm256_extracti128_si256::<1>(sets) };
+        word = f1_lanes_avx2!(word, stored, _mm256_cvtepu16_epi32(half_sets), first, later, f1);
+    }
+    for row in 0..2 {
+        let lanes = lanes >> (4 * row) & 0xF;
         if lanes == 0 {
             continue;
         }
-        let hidden = _mm256_cvtepi16_epi32(if half == 0 {
-            _mm256_castsi256_si128(hidden)
+        let at = (2 * HALF + row) * width;
+        let new = if row == 0 { _mm256_castsi256_si128(word) } else { _mm256_extracti128_si256::<1>(word) };
+        let dst = &mut cell[at..at + cols];
+        if lanes == 0xF && cols == SIDE {
+            store_row(dst, new);
         } else {
-            _mm256_extracti128_si256::<1>(hidden)
-        });
-        // The first visible pixel's colour places the ROM's windows.
-        let lane = (8 * half + lanes.trailing_zeros() as usize) & 15;
-        let anchor = [colors.rgb[0][lane], colors.rgb[1][lane], colors.rgb[2][lane]];
-        let mut word = encode8_rgb_avx2(load_colors_half(colors, half), hidden, anchor, encoder.entries);
-        if done >> (8 * half) & 0xFF != lanes {
-            let first = u32::from(vis.first) >> (8 * half) & 0xFF;
-            let later = lanes & !first;
-            let mut stored = _mm256_setzero_si256();
-            for row in 0..2 {
-                if later >> (4 * row) & 0xF == 0 {
-                    continue;
-                }
-                // Row `2 half + row` has a visible pixel, so it is in `cell`.
-                let at = (2 * half + row) * width;
-                let words = load_row(&cell[at..at + cols]);
-                stored = if row == 0 {
-                    _mm256_inserti128_si256::<0>(stored, words)
-                } else {
-                    _mm256_inserti128_si256::<1>(stored, words)
-                };
-            }
-            let half_sets = if half == 0 { _mm256_castsi256_si128(sets) } else { _mm256_extracti128_si256::<1>(sets) };
-            word = f1_lanes_avx2(word, stored, _mm256_cvtepu16_epi32(half_sets), first, later, f1);
-        }
-        for row in 0..2 {
-            let lanes = lanes >> (4 * row) & 0xF;
-            if lanes == 0 {
-                continue;
-            }
-            let at = (2 * half + row) * width;
-            let new = if row == 0 { _mm256_castsi256_si128(word) } else { _mm256_extracti128_si256::<1>(word) };
-            let dst = &mut cell[at..at + cols];
-            if lanes == 0xF && cols == SIDE {
-                store_row(dst, new);
-            } else {
-                // The visible pixels one by one: a load of the row to blend with
-                // would often miss the cache (city's colour + VB 0.4 ms slower).
-                let mut words = [0u32; SIDE];
-                store_row(&mut words, new);
-                for (x, w) in dst.iter_mut().enumerate() {
-                    if lanes >> x & 1 == 1 {
-                        *w = words[x];
-                    }
+            // The visible pixels one by one: a load of the row to blend with
+            // would often miss the cache (city's colour + VB 0.4 ms slower).
+            let mut words = [0u32; SIDE];
+            store_row(&mut words, new);
+            for (x, w) in dst.iter_mut().enumerate() {
+                if lanes >> x & 1 == 1 {
+                    *w = words[x];
                 }
             }
         }
@@ -1643,64 +1746,6 @@ fn accumulate_log8_avx2(
 fn mask16_avx2(v: __m256i) -> u16 {
     let bytes = _mm_packs_epi16(_mm256_castsi256_si128(v), _mm256_extracti128_si256::<1>(v));
     _mm_movemask_epi8(bytes) as u16
-}
-
-/// Eq. 3 and 4 of half a cell in lanes (a whole first fragment's result is its
-/// code): the codes `word` ([`Word8`]s) weighed by `ln S` (the subpixel counts of
-/// `sets` through the `ln S` table, permuted from two registers, no gather), summed
-/// with the `stored` words in the `later` lanes (`ln(1 + e^x)` by a gather), and
-/// stored ([`LogArith::store`]); `first`, `later`: a bit per lane.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[inline]
-fn f1_lanes_avx2(word: __m256i, stored: __m256i, sets: __m256i, first: u32, later: u32, f1: &LogF1) -> __m256i {
-    let lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
-    let ln_s = {
-        let index =
-            _mm256_and_si256(_mm256_sub_epi32(popcount16_avx2(sets), _mm256_set1_epi32(1)), _mm256_set1_epi32(15));
-        // The 16 entries in two registers, each permuted by the index's
-        // low 3 bits, the one its bit 3 names kept (no gather).
-        let (low, high): (&[i32; 8], &[i32; 8]) =
-            (f1.ln_area[..8].try_into().expect("8 entries"), f1.ln_area[8..].try_into().expect("8 entries"));
-        // SAFETY: `low` and `high` are 8 `i32` each, the 32 bytes each load reads.
-        #[allow(unsafe_code, reason = "unaligned loads of arrays of a register's size")]
-        let (low, high) =
-            unsafe { (_mm256_loadu_si256(low.as_ptr().cast()), _mm256_loadu_si256(high.as_ptr().cast())) };
-        _mm256_blendv_epi8(
-            _mm256_permutevar8x32_epi32(low, index),
-            _mm256_permutevar8x32_epi32(high, index),
-            _mm256_cmpgt_epi32(index, _mm256_set1_epi32(7)),
-        )
-    };
-    let first_lanes = _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(first as i32), lane_bits), lane_bits);
-    let arith = f1.arith;
-    let mut out = _mm256_setzero_si256();
-    for shift in [0, 8, 16] {
-        let count = _mm_cvtsi32_si128(shift);
-        let byte = _mm256_set1_epi32(0xFF);
-        let mut v = _mm256_add_epi32(from_code_avx2(_mm256_and_si256(_mm256_srl_epi32(word, count), byte)), ln_s);
-        if later != 0 {
-            let s = from_code_avx2(_mm256_and_si256(_mm256_srl_epi32(stored, count), byte));
-            let (hi, lo) = (_mm256_max_epi32(v, s), _mm256_min_epi32(v, s));
-            let d = _mm256_min_epi32(_mm256_sub_epi32(hi, lo), _mm256_set1_epi32(SOFTPLUS_LANE_MAX));
-            // SAFETY: `d` is `0 ..= SOFTPLUS_PADDED - 2` (a difference max
-            // - min, clamped), so the 4 bytes read at entry `d` are entries
-            // `d` and `d + 1` of the padded table.
-            #[allow(unsafe_code, reason = "a gather from the padded ln(1 + e^x) table, the index clamped inside it")]
-            let t = unsafe { _mm256_i32gather_epi32::<2>(arith.softplus.as_ptr().cast::<i32>(), d) };
-            let sum = _mm256_add_epi32(hi, _mm256_and_si256(t, _mm256_set1_epi32(0xFFFF)));
-            v = _mm256_blendv_epi8(sum, v, first_lanes);
-        }
-        // `LogArith::store`.
-        let rounded = _mm256_srai_epi32::<2>(_mm256_add_epi32(
-            _mm256_add_epi32(v, _mm256_set1_epi32(FINE_PER_CODE / 2 - 1)),
-            _mm256_and_si256(_mm256_srai_epi32::<2>(v), _mm256_set1_epi32(1)),
-        ));
-        let code = _mm256_min_epi32(_mm256_max_epi32(rounded, _mm256_set1_epi32(1)), _mm256_set1_epi32(arith.one));
-        let kept = _mm256_cmpgt_epi32(v, _mm256_set1_epi32(arith.floor - 1));
-        out = _mm256_or_si256(out, _mm256_sll_epi32(_mm256_and_si256(code, kept), count));
-    }
-    out
 }
 
 /// A row of a cell's VMEM words: four words whole, fewer (at the screen's right
