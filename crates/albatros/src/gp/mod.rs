@@ -491,6 +491,9 @@ struct Shared<'a> {
     /// Whether shared vertices are placed once ([`VertexCache`]; the tests
     /// compare it with placing every vertex of every face).
     vertex_cache: bool,
+    /// Whether faces are set up by the copy of [`FrameBuilder::face`] compiled for
+    /// AVX2 ([`has_avx2`]; the tests compare it with the plain copy).
+    avx2: bool,
     /// Instance counters (counted once, here).
     counters: GpCounters,
 }
@@ -624,6 +627,7 @@ fn frame_with(
     shared.cull = shortcuts;
     shared.triangles = shortcuts;
     shared.vertex_cache = shortcuts;
+    shared.avx2 = shortcuts && has_avx2();
     let shared = shared;
     // Only the places where guests are attached this frame are visited (a
     // terrain's tree has twice as many empty places as faces).
@@ -839,6 +843,7 @@ impl<'a> Shared<'a> {
             cull: true,
             triangles: true,
             vertex_cache: true,
+            avx2: false,
             counters: GpCounters::default(),
         };
         s.instances();
@@ -864,10 +869,20 @@ impl<'a> Shared<'a> {
     /// Whether the subtree of node `n` of the static tree is passed over whole
     /// ([`Visit::Culled`]): large enough, wholly outside the view volume, and with
     /// no guest attached inside (a guest's place would be lost).
-    #[inline]
+    ///
+    /// Asked at every node the traversal enters (on `many` about one a face): the
+    /// size test, which turns nearly every node away, inline in the traversal; the
+    /// box test out of line.
+    #[inline(always)]
     fn culls(&self, n: u32) -> bool {
+        self.cull && self.db.bsp.subtree_faces(n) >= CULL_MIN_FACES && self.culls_large(n)
+    }
+
+    /// [`Shared::culls`] of a node with at least [`CULL_MIN_FACES`] faces below it.
+    #[inline(never)]
+    fn culls_large(&self, n: u32) -> bool {
         let bsp = &self.db.bsp;
-        if !self.cull || bsp.subtree_faces(n) < CULL_MIN_FACES || !self.frustum.rejects(bsp.bounds(n)) {
+        if !self.frustum.rejects(bsp.bounds(n)) {
             return false;
         }
         let end = n + bsp.subtree_nodes(n);
@@ -904,7 +919,7 @@ impl FrameBuilder<'_> {
             Visit::Face(i) => {
                 let bsp = &f.db.bsp;
                 let r = &bsp.records[i as usize];
-                self.face(r, bsp, &f.view.world_to_eye, f.view.position, f.sun_world);
+                self.face(r, bsp, &f.view.world_to_eye, &f.view.position, &f.sun_world);
             }
             Visit::Guests(n, slot) => {
                 if self.places.get(n as usize).is_none_or(|&p| p >> slot as u8 & 1 != 0) {
@@ -975,7 +990,7 @@ impl FrameBuilder<'_> {
         m.bsp.traverse(eye_model, |step| {
             if let Visit::Face(f) = step {
                 let r = &m.bsp.records[f as usize];
-                self.face(r, &m.bsp, &to_eye, eye_model, sun_model);
+                self.face(r, &m.bsp, &to_eye, &eye_model, &sun_model);
             }
         });
         // The static tree's numbers again.
@@ -986,13 +1001,52 @@ impl FrameBuilder<'_> {
     /// coordinates to the eye's; `eye_local` is the eye in the face's coordinates;
     /// `tree` is the tree it is a record of (its vertices, and their position
     /// numbers for the [`VertexCache`] if the tree keeps them).
-    fn face(&mut self, face: &FaceRecord, tree: &Bsp, to_eye: &DMat4, eye_local: DVec3, sun: DVec3) {
+    ///
+    /// By the copy compiled for AVX2 where the processor has it ([`Shared::avx2`]),
+    /// else by the plain one: the same source ([`FrameBuilder::face_body`]), so the
+    /// same operations in the same order, the same bits.
+    #[inline(always)]
+    fn face(&mut self, face: &FaceRecord, tree: &Bsp, to_eye: &DMat4, eye_local: &DVec3, sun: &DVec3) {
+        #[cfg(target_arch = "x86_64")]
+        if self.f.avx2 {
+            // SAFETY: `face_avx2` only needs AVX2 and BMI1/2, which `has_avx2`
+            // found the processor to have when `Shared::avx2` was set (nowhere else).
+            #[allow(unsafe_code, reason = "a function compiled for AVX2, after detection")]
+            unsafe {
+                return self.face_avx2(face, tree, to_eye, eye_local, sun);
+            }
+        }
+        self.face_plain(face, tree, to_eye, eye_local, sun);
+    }
+
+    /// [`FrameBuilder::face_body`] compiled for the baseline processor.
+    #[inline(never)]
+    fn face_plain(&mut self, face: &FaceRecord, tree: &Bsp, to_eye: &DMat4, eye_local: &DVec3, sun: &DVec3) {
+        self.face_body(face, tree, to_eye, eye_local, sun);
+    }
+
+    /// [`FrameBuilder::face_body`] compiled for AVX2 and BMI1/2, the set-up and
+    /// the edge codes inlined into it: the same `f64` and integer operations in the
+    /// same order (Rust neither fuses nor reorders float operations), in VEX
+    /// three-operand form (no register copies before each destructive SSE
+    /// operation) with BMI2's shifts by a register. Callgrind, `many` (960x540):
+    /// about 6 % fewer GP instructions.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline(never)]
+    fn face_avx2(&mut self, face: &FaceRecord, tree: &Bsp, to_eye: &DMat4, eye_local: &DVec3, sun: &DVec3) {
+        self.face_body(face, tree, to_eye, eye_local, sun);
+    }
+
+    /// What [`FrameBuilder::face`] does, inlined into each of its copies.
+    #[inline(always)]
+    fn face_body(&mut self, face: &FaceRecord, tree: &Bsp, to_eye: &DMat4, eye_local: &DVec3, sun: &DVec3) {
         let vertices = tree.record_vertices_of(face);
         let Some(instance_class) = self.f.class[face.instance as usize] else { return };
         let counters = &mut self.counters;
         counters.faces_in += 1;
         // Back-face culling: the eye must be in front of the face's plane.
-        if face.plane.distance(eye_local) <= 0.0 {
+        if face.plane.distance(*eye_local) <= 0.0 {
             counters.backfacing += 1;
             return;
         }
@@ -1004,7 +1058,7 @@ impl FrameBuilder<'_> {
         // The face's and the environment's constants, out of the vertex loop: an
         // emissive or flat-shaded face's `cos a` is the same at every vertex.
         let ambient = f64::from(env.ambient);
-        let lit = |normal: DVec3| ambient + (1.0 - ambient) * normal.dot(sun).max(0.0);
+        let lit = |normal: DVec3| ambient + (1.0 - ambient) * normal.dot(*sun).max(0.0);
         let cos_a = match (material.emissive, material.shading) {
             (true, _) => Some(1.0),
             (false, crate::db::Shading::Smooth) => None,
@@ -1015,7 +1069,7 @@ impl FrameBuilder<'_> {
             view,
             cos_a,
             ambient,
-            sun,
+            sun: *sun,
             pb: f64::from(env.background_brightness),
             attenuation: env.attenuation,
         };
@@ -1196,6 +1250,7 @@ impl Lighting<'_> {
 }
 
 /// The plane of an eye-space polygon (Newell), normal towards the front.
+#[inline(always)]
 fn eye_plane(vs: &[EyeVertex]) -> Plane {
     let p0 = vs[0].position;
     let mut n = DVec3::ZERO;
@@ -1204,6 +1259,23 @@ fn eye_plane(vs: &[EyeVertex]) -> Plane {
     }
     let normal = n.normalize_or_zero();
     Plane { normal, d: normal.dot(p0) }
+}
+
+/// Whether the processor runs [`FrameBuilder::face`]'s copy compiled for AVX2 (it
+/// needs AVX2 and BMI1/2; every processor with AVX2 has them).
+fn has_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::is_x86_feature_detected!("avx2")
+            && std::is_x86_feature_detected!("bmi1")
+            && std::is_x86_feature_detected!("bmi2")
+            && std::is_x86_feature_detected!("lzcnt")
+            && std::is_x86_feature_detected!("popcnt")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
 }
 
 /// Sutherland-Hodgman by the near plane `Z = NEAR`, interpolating intensity.

@@ -134,6 +134,7 @@ impl Setup {
     }
 
     /// `1/Z` as a linear function of pixel coordinates, from the eye-space plane.
+    #[inline]
     fn inv_z(&self, plane: &Plane) -> Option<[f64; 3]> {
         let (n, d) = (plane.normal, plane.d);
         if d.abs() < 1e-12 {
@@ -146,6 +147,7 @@ impl Setup {
 
     /// The screen triple of a quantity `q = g . P + k` linear in eye space (on the
     /// plane): `q / Z = g . (x', y', 1) + k / Z`, `x' = (x - cx) / f`.
+    #[inline]
     fn screen_triple(&self, g: DVec3, k: f64, inv_z: &[f64; 3]) -> FracLin {
         let f = self.view.focal;
         let (cx, cy) = (self.view.center.x, self.view.center.y);
@@ -164,7 +166,11 @@ impl Setup {
     /// `Setup` sets up (one frame's): a textured face reuses the texture axes of the
     /// face before it when both are of the same instance and material
     /// (`TextureAxes`).
+    ///
+    /// Inline in the GP's face set-up (`gp::FrameBuilder::face`), so that its copy
+    /// compiled for AVX2 holds this one's too.
     #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
     pub fn add_face(
         &mut self,
         source: Source,
@@ -176,39 +182,57 @@ impl Setup {
         model_to_eye: &DMat4,
         out: &mut FrameList,
     ) -> bool {
-        let Some(inside_positive) = snap_outline(outline, &mut self.snapped) else { return false };
+        // A triangle (nearly every face) is snapped into registers, set up from
+        // them and its codes made inline ([`EdgeCode::push_triangle`]); other
+        // outlines go through `self.snapped`.
+        let (inside_positive, triangle) = match outline {
+            [a, b, c] => match snap_triangle_points([a, b, c]) {
+                Some((inside, points)) => (inside, Some(points)),
+                None => return false,
+            },
+            _ => match snap_outline(outline, &mut self.snapped) {
+                Some(inside) => (inside, None),
+                None => return false,
+            },
+        };
         let Some(inv_z) = self.inv_z(plane_eye) else { return false };
         let intensity = self.linear_on_face(plane_eye, eye_poly, &inv_z);
-        let texture = material.and_then(|m| {
-            let t = m.texture.as_ref()?;
-            let key = (source.ids.0, source.material);
-            let axes = match self.texture_axes {
-                Some(axes) if axes.key == key => axes,
-                _ => {
-                    let axes = TextureAxes::new(key, t, model_to_eye);
-                    self.texture_axes = Some(axes);
-                    axes
-                }
-            };
-            let u = self.screen_triple(axes.u.0, axes.u.1, &inv_z);
-            let v = self.screen_triple(axes.v.0, axes.v.1, &inv_z);
-            let par = (axes.len_u / plane_eye.d.abs()) as f32;
-            Some(PolyTexture { map: t.map, u, v, par, color1: t.color1, color2: t.color2 })
-        });
-        let texture = match texture {
+        // (Written without a closure, which the compiler kept out of line.)
+        let texture = match material.and_then(|m| m.texture.as_ref()) {
             Some(t) => {
-                out.textures.push(t);
+                let key = (source.ids.0, source.material);
+                let axes = match self.texture_axes {
+                    Some(axes) if axes.key == key => axes,
+                    _ => {
+                        let axes = TextureAxes::new(key, t, model_to_eye);
+                        self.texture_axes = Some(axes);
+                        axes
+                    }
+                };
+                let u = self.screen_triple(axes.u.0, axes.u.1, &inv_z);
+                let v = self.screen_triple(axes.v.0, axes.v.1, &inv_z);
+                let par = (axes.len_u / plane_eye.d.abs()) as f32;
+                out.textures.push(PolyTexture { map: t.map, u, v, par, color1: t.color1, color2: t.color2 });
                 out.textures.len() as u32 - 1
             }
             None => FramePolygon::NO_TEXTURE,
         };
         let vstart = out.vertices.len() as u32;
         let inv_z32 = FracLin { a: inv_z[0] as f32, b: inv_z[1] as f32, c: inv_z[2] as f32 };
-        out.vertices.extend(self.snapped.iter().map(|a| {
+        let vertex = |a: &(ScreenFx, ScreenFx)| {
             let (x, y) = (a.0.to_f32(), a.1.to_f32());
             ScreenVertex { x, y, inv_w: inv_z32.eval(x, y) }
-        }));
-        EdgeCode::push_outline(&self.snapped, inside_positive, self.root_side, &mut out.edges);
+        };
+        match triangle {
+            Some(points) => {
+                out.vertices.extend_from_slice(&[vertex(&points[0]), vertex(&points[1]), vertex(&points[2])]);
+                EdgeCode::push_triangle(points, inside_positive, self.root_side, &mut out.edges);
+            }
+            None => {
+                out.vertices.extend(self.snapped.iter().map(vertex));
+                EdgeCode::push_outline(&self.snapped, inside_positive, self.root_side, &mut out.edges);
+            }
+        }
         out.polygons.push(FramePolygon {
             vertices: vstart..out.vertices.len() as u32,
             kind: source.kind,
@@ -225,6 +249,7 @@ impl Setup {
 
     /// Intensity as a fractional-linear function: fitted on the three vertices that
     /// span the largest triangle (exact for a linear distribution).
+    #[inline(always)]
     fn linear_on_face(&self, plane: &Plane, vs: &[EyeVertex], inv_z: &[f64; 3]) -> FracLin {
         let n = vs.len();
         let mut best = (0.0, 0, 1, 2);
@@ -249,8 +274,19 @@ impl Setup {
         let (q0, q1, q2) = (vs[i].intensity, vs[j].intensity, vs[k].intensity);
         // g . (p1 - p0) = q1 - q0, g . (p2 - p0) = q2 - q0, g . N = 0.
         let m = DMat3::from_cols(p1 - p0, p2 - p0, plane.normal).transpose();
-        let g =
-            if m.determinant().abs() > 1e-18 { m.inverse() * DVec3::new(q1 - q0, q2 - q0, 0.0) } else { DVec3::ZERO };
+        // `m.determinant()` and `m.inverse()`, as glam 0.29 computes them, written
+        // out: the compiler kept `inverse` out of line in the GP's face set-up, and
+        // the determinant is the inverse's own (`z . (x × y)`, the same bits).
+        let tmp2 = m.x_axis.cross(m.y_axis);
+        let det = m.z_axis.dot(tmp2);
+        let g = if det.abs() > 1e-18 {
+            let (tmp0, tmp1) = (m.y_axis.cross(m.z_axis), m.z_axis.cross(m.x_axis));
+            let inv_det = DVec3::splat(det.recip());
+            let inverse = DMat3::from_cols(tmp0 * inv_det, tmp1 * inv_det, tmp2 * inv_det).transpose();
+            inverse * DVec3::new(q1 - q0, q2 - q0, 0.0)
+        } else {
+            DVec3::ZERO
+        };
         let k0 = q0 - g.dot(p0);
         self.screen_triple(g, k0, inv_z)
     }
@@ -283,14 +319,22 @@ pub fn snap_outline(outline: &[DVec2], s: &mut Vec<(ScreenFx, ScreenFx)>) -> Opt
 /// its turns is its doubled area).
 #[inline]
 fn snap_triangle(outline: [&DVec2; 3], s: &mut Vec<(ScreenFx, ScreenFx)>) -> Option<bool> {
-    let q = outline.map(|p| (ScreenFx::from_f64(p.x), ScreenFx::from_f64(p.y)));
     s.clear();
+    let (inside, q) = snap_triangle_points(outline)?;
+    s.extend_from_slice(&q);
+    Some(inside)
+}
+
+/// [`snap_triangle`] without the list: the orientation and the snapped points,
+/// or `None` for a degenerate triangle.
+#[inline(always)]
+fn snap_triangle_points(outline: [&DVec2; 3]) -> Option<(bool, [(ScreenFx, ScreenFx); 3])> {
+    let q = outline.map(|p| (ScreenFx::from_f64(p.x), ScreenFx::from_f64(p.y)));
     if q[0] == q[1] || q[1] == q[2] || q[2] == q[0] {
         return None;
     }
-    s.extend_from_slice(&q);
     let area2 = shoelace(&q);
-    (area2 != 0).then_some(area2 > 0)
+    (area2 != 0).then_some((area2 > 0, q))
 }
 
 /// The first step of [`snap_outline`]: the outline snapped into `s` without
