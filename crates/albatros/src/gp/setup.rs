@@ -14,6 +14,11 @@
 //!   integer part of `D'` is dropped, so `u`, `v` stay small near the eye whatever the
 //!   size of the textured plane;
 //! - `PAR = (1/L) (1/|Dn|)` for the level of detail (P2), `1/L = |grad u|`.
+//!
+//! [`Setup::add_face`] is inlined into the GP's face set-up (`gp::FrameBuilder::face`,
+//! whose copy compiled for AVX2 then holds it too); a triangle, nearly every face,
+//! is snapped into registers and its three edge codes made inline
+//! ([`EdgeCode::push_triangle`]), other outlines go through a scratch list.
 
 use glam::{DMat3, DMat4, DVec2, DVec3};
 
@@ -274,21 +279,29 @@ impl Setup {
         let (q0, q1, q2) = (vs[i].intensity, vs[j].intensity, vs[k].intensity);
         // g . (p1 - p0) = q1 - q0, g . (p2 - p0) = q2 - q0, g . N = 0.
         let m = DMat3::from_cols(p1 - p0, p2 - p0, plane.normal).transpose();
-        // `m.determinant()` and `m.inverse()`, as glam 0.29 computes them, written
-        // out: the compiler kept `inverse` out of line in the GP's face set-up, and
-        // the determinant is the inverse's own (`z . (x × y)`, the same bits).
-        let tmp2 = m.x_axis.cross(m.y_axis);
-        let det = m.z_axis.dot(tmp2);
-        let g = if det.abs() > 1e-18 {
-            let (tmp0, tmp1) = (m.y_axis.cross(m.z_axis), m.z_axis.cross(m.x_axis));
-            let inv_det = DVec3::splat(det.recip());
-            let inverse = DMat3::from_cols(tmp0 * inv_det, tmp1 * inv_det, tmp2 * inv_det).transpose();
-            inverse * DVec3::new(q1 - q0, q2 - q0, 0.0)
-        } else {
-            DVec3::ZERO
-        };
+        let g = solve_gradient(&m, DVec3::new(q1 - q0, q2 - q0, 0.0));
         let k0 = q0 - g.dot(p0);
         self.screen_triple(g, k0, inv_z)
+    }
+}
+
+/// `m.inverse() * rhs` where `m.determinant().abs() > 1e-18`, else zero: the
+/// intensity gradient of [`Setup::linear_on_face`].
+///
+/// glam 0.29's `DMat3::determinant` and `DMat3::inverse` written out with glam's
+/// own operations in its order (the same bits; tested): the compiler kept `inverse`
+/// out of line in the GP's face set-up (a call and a matrix through memory per
+/// face), and the determinant is the inverse's own (`z . (x × y)`), computed once.
+#[inline(always)]
+fn solve_gradient(m: &DMat3, rhs: DVec3) -> DVec3 {
+    let tmp2 = m.x_axis.cross(m.y_axis);
+    let det = m.z_axis.dot(tmp2);
+    if det.abs() > 1e-18 {
+        let (tmp0, tmp1) = (m.y_axis.cross(m.z_axis), m.z_axis.cross(m.x_axis));
+        let inv_det = DVec3::splat(det.recip());
+        DMat3::from_cols(tmp0 * inv_det, tmp1 * inv_det, tmp2 * inv_det).transpose() * rhs
+    } else {
+        DVec3::ZERO
     }
 }
 
@@ -468,6 +481,31 @@ mod tests {
         fn range(&mut self, lo: f64, hi: f64) -> f64 {
             lo + (hi - lo) * (self.next() >> 11) as f64 / (1u64 << 53) as f64
         }
+    }
+
+    /// [`solve_gradient`] is glam's determinant test and inverse, bit for bit:
+    /// random matrices from tiny to huge entries, singular and nearly singular
+    /// ones, zero right-hand sides (the signs of zero products) among them.
+    #[test]
+    fn solve_gradient_is_glams_inverse() {
+        let mut rng = Rng(0x6AD1_E27F_0A11);
+        let mut taken = [0usize; 2];
+        for case in 0..100_000 {
+            let scale = [1e-7, 1e-3, 1.0, 1e3, 1e6][case % 5];
+            let mut v = || rng.range(-scale, scale);
+            let mut m = DMat3::from_cols_array(&[v(), v(), v(), v(), v(), v(), v(), v(), v()]);
+            if case % 7 == 0 {
+                // Singular: the third row the sum of the first two.
+                let t = m.transpose();
+                m = DMat3::from_cols(t.x_axis, t.y_axis, t.x_axis + t.y_axis).transpose();
+            }
+            let rhs = if case % 3 == 0 { DVec3::ZERO } else { DVec3::new(v(), v(), 0.0) };
+            let plain = if m.determinant().abs() > 1e-18 { m.inverse() * rhs } else { DVec3::ZERO };
+            let got = solve_gradient(&m, rhs);
+            assert_eq!(got.to_array().map(f64::to_bits), plain.to_array().map(f64::to_bits), "{m:?} {rhs:?}");
+            taken[usize::from(m.determinant().abs() > 1e-18)] += 1;
+        }
+        assert!(taken.iter().all(|&k| k > 1000), "both branches tested: {taken:?}");
     }
 
     #[test]

@@ -477,8 +477,9 @@ mod tests {
     proptest::proptest! {
         #![proptest_config(proptest::prelude::ProptestConfig::with_cases(20_000))]
 
-        /// The straight-line triangle path of [`EdgeCode::push_outline`] gives the
-        /// definition's codes, in order, over random and extreme corners.
+        /// The straight-line triangle path of [`EdgeCode::push_outline`], and
+        /// [`EdgeCode::push_triangle`], give the definition's codes, in order, over
+        /// random and extreme corners.
         #[test]
         fn push_outline_of_a_triangle_is_the_plain_definition(
             xs in proptest::array::uniform3(coordinate()),
@@ -494,7 +495,10 @@ mod tests {
             if let Some(want) = want {
                 let mut got = Vec::new();
                 EdgeCode::push_outline(&pts, inside, root_side, &mut got);
-                proptest::prop_assert_eq!(got, want);
+                proptest::prop_assert_eq!(&got, &want);
+                let mut got = vec![want[0]];
+                EdgeCode::push_triangle([pts[0], pts[1], pts[2]], inside, root_side, &mut got);
+                proptest::prop_assert_eq!(&got[1..], &want[..]);
             }
         }
     }
