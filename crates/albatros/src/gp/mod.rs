@@ -589,7 +589,7 @@ pub fn frame_into(
     out: &mut FrameList,
 ) {
     let mut stretches = std::mem::take(&mut memory.stretches);
-    frame_with(db, eye, screen, config, counters, memory, &mut stretches, Some(out), true);
+    frame_with(db, eye, screen, config, counters, memory, &mut stretches, Some(out), true, true);
     memory.stretches = stretches;
 }
 
@@ -610,14 +610,16 @@ pub fn frame_stretches_into(
     memory: &mut GpMemory,
     stretches: &mut Vec<FrameList>,
 ) {
-    frame_with(db, eye, screen, config, counters, memory, stretches, None, true);
+    frame_with(db, eye, screen, config, counters, memory, stretches, None, true, true);
 }
 
 /// [`frame_into`] (the stretches joined into `out`) or, with `out` `None`,
 /// [`frame_stretches_into`] (the frame left as `stretches`), with or without its
 /// shortcuts (`shortcuts`: passing over the static tree's subtrees outside the view
 /// volume, and over the guests' places in a frame with no guests; triangles set up
-/// by a path of their own; shared vertices placed once; the tests compare the two).
+/// by a path of their own; shared vertices placed once; the tests compare the two),
+/// and with or without the copy of the faces' path compiled for AVX2 (`avx2`, where
+/// the processor has it: [`Shared::avx2`]).
 #[allow(clippy::too_many_arguments)]
 fn frame_with(
     db: &Database,
@@ -629,13 +631,14 @@ fn frame_with(
     stretches: &mut Vec<FrameList>,
     out: Option<&mut FrameList>,
     shortcuts: bool,
+    avx2: bool,
 ) {
     let view = View::new(eye, screen);
     let mut shared = Shared::new(db, view, *config);
     shared.cull = shortcuts;
     shared.triangles = shortcuts;
     shared.vertex_cache = shortcuts;
-    shared.avx2 = shortcuts && has_avx2();
+    shared.avx2 = avx2 && has_avx2();
     let shared = shared;
     // Only the places where guests are attached this frame are visited (a
     // terrain's tree has twice as many empty places as faces).
@@ -1320,8 +1323,8 @@ mod tests {
 
     /// The GP's shortcuts (passing over the subtrees outside the view volume, and
     /// over the guests' places when there are none; the path for triangles; the
-    /// cache of shared vertices' places) change
-    /// neither the frame list (polygons, vertices, edge codes, texture set-ups) nor
+    /// cache of shared vertices' places), and the faces' path compiled for AVX2,
+    /// change neither the frame list (polygons, vertices, edge codes, texture set-ups) nor
     /// a counter: built-in scenes with and without light points and moving models,
     /// textured and not, of triangles (terrain) and other polygons, eyes turned
     /// every way (much of the tree behind or beside them, faces clipped by the
@@ -1369,7 +1372,7 @@ mod tests {
                 let mut one_gp: Option<(FrameList, GpCounters)> = None;
                 for threads in [1, 2] {
                     let config = GpConfig { threads, ..GpConfig::default() };
-                    let run = |shortcuts: bool| {
+                    let run = |shortcuts: bool, avx2: bool| {
                         let (mut c, mut out) = (GpCounters::default(), FrameList::default());
                         let mut stretches = Vec::new();
                         let memory = &mut GpMemory::default();
@@ -1383,11 +1386,15 @@ mod tests {
                             &mut stretches,
                             Some(&mut out),
                             shortcuts,
+                            avx2,
                         );
                         (out, c)
                     };
-                    let (plain, fast) = (run(false), run(true));
+                    let (plain, fast) = (run(false, false), run(true, true));
                     assert!(plain == fast, "{name}, eye {eye:?}, {threads} threads");
+                    // Each copy of the faces' path, with the shortcuts and without.
+                    assert!(run(true, false) == fast, "{name}, eye {eye:?}, {threads} threads: plain copy");
+                    assert!(run(false, true) == fast, "{name}, eye {eye:?}, {threads} threads: AVX2 copy");
                     // The frame as stretches, unjoined: in order, the same polygons
                     // with the same vertices, edge codes and texture set-ups, and
                     // the same counters (twice, the second time into kept lists).
