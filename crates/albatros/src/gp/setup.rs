@@ -14,6 +14,11 @@
 //!   integer part of `D'` is dropped, so `u`, `v` stay small near the eye whatever the
 //!   size of the textured plane;
 //! - `PAR = (1/L) (1/|Dn|)` for the level of detail (P2), `1/L = |grad u|`.
+//!
+//! [`Setup::add_face`] is inlined into the GP's face set-up (`gp::FrameBuilder::face`,
+//! whose copy compiled for AVX2 then holds it too); a triangle, nearly every face,
+//! is snapped into registers and its three edge codes made inline
+//! ([`EdgeCode::push_triangle`]), other outlines go through a scratch list.
 
 use glam::{DMat3, DMat4, DVec2, DVec3};
 
@@ -134,6 +139,7 @@ impl Setup {
     }
 
     /// `1/Z` as a linear function of pixel coordinates, from the eye-space plane.
+    #[inline]
     fn inv_z(&self, plane: &Plane) -> Option<[f64; 3]> {
         let (n, d) = (plane.normal, plane.d);
         if d.abs() < 1e-12 {
@@ -146,6 +152,7 @@ impl Setup {
 
     /// The screen triple of a quantity `q = g . P + k` linear in eye space (on the
     /// plane): `q / Z = g . (x', y', 1) + k / Z`, `x' = (x - cx) / f`.
+    #[inline]
     fn screen_triple(&self, g: DVec3, k: f64, inv_z: &[f64; 3]) -> FracLin {
         let f = self.view.focal;
         let (cx, cy) = (self.view.center.x, self.view.center.y);
@@ -164,7 +171,11 @@ impl Setup {
     /// `Setup` sets up (one frame's): a textured face reuses the texture axes of the
     /// face before it when both are of the same instance and material
     /// (`TextureAxes`).
+    ///
+    /// Inline in the GP's face set-up (`gp::FrameBuilder::face`), so that its copy
+    /// compiled for AVX2 holds this one's too.
     #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
     pub fn add_face(
         &mut self,
         source: Source,
@@ -176,39 +187,57 @@ impl Setup {
         model_to_eye: &DMat4,
         out: &mut FrameList,
     ) -> bool {
-        let Some(inside_positive) = snap_outline(outline, &mut self.snapped) else { return false };
+        // A triangle (nearly every face) is snapped into registers, set up from
+        // them and its codes made inline ([`EdgeCode::push_triangle`]); other
+        // outlines go through `self.snapped`.
+        let (inside_positive, triangle) = match outline {
+            [a, b, c] => match snap_triangle_points([a, b, c]) {
+                Some((inside, points)) => (inside, Some(points)),
+                None => return false,
+            },
+            _ => match snap_outline(outline, &mut self.snapped) {
+                Some(inside) => (inside, None),
+                None => return false,
+            },
+        };
         let Some(inv_z) = self.inv_z(plane_eye) else { return false };
         let intensity = self.linear_on_face(plane_eye, eye_poly, &inv_z);
-        let texture = material.and_then(|m| {
-            let t = m.texture.as_ref()?;
-            let key = (source.ids.0, source.material);
-            let axes = match self.texture_axes {
-                Some(axes) if axes.key == key => axes,
-                _ => {
-                    let axes = TextureAxes::new(key, t, model_to_eye);
-                    self.texture_axes = Some(axes);
-                    axes
-                }
-            };
-            let u = self.screen_triple(axes.u.0, axes.u.1, &inv_z);
-            let v = self.screen_triple(axes.v.0, axes.v.1, &inv_z);
-            let par = (axes.len_u / plane_eye.d.abs()) as f32;
-            Some(PolyTexture { map: t.map, u, v, par, color1: t.color1, color2: t.color2 })
-        });
-        let texture = match texture {
+        // (Written without a closure, which the compiler kept out of line.)
+        let texture = match material.and_then(|m| m.texture.as_ref()) {
             Some(t) => {
-                out.textures.push(t);
+                let key = (source.ids.0, source.material);
+                let axes = match self.texture_axes {
+                    Some(axes) if axes.key == key => axes,
+                    _ => {
+                        let axes = TextureAxes::new(key, t, model_to_eye);
+                        self.texture_axes = Some(axes);
+                        axes
+                    }
+                };
+                let u = self.screen_triple(axes.u.0, axes.u.1, &inv_z);
+                let v = self.screen_triple(axes.v.0, axes.v.1, &inv_z);
+                let par = (axes.len_u / plane_eye.d.abs()) as f32;
+                out.textures.push(PolyTexture { map: t.map, u, v, par, color1: t.color1, color2: t.color2 });
                 out.textures.len() as u32 - 1
             }
             None => FramePolygon::NO_TEXTURE,
         };
         let vstart = out.vertices.len() as u32;
         let inv_z32 = FracLin { a: inv_z[0] as f32, b: inv_z[1] as f32, c: inv_z[2] as f32 };
-        out.vertices.extend(self.snapped.iter().map(|a| {
+        let vertex = |a: &(ScreenFx, ScreenFx)| {
             let (x, y) = (a.0.to_f32(), a.1.to_f32());
             ScreenVertex { x, y, inv_w: inv_z32.eval(x, y) }
-        }));
-        EdgeCode::push_outline(&self.snapped, inside_positive, self.root_side, &mut out.edges);
+        };
+        match triangle {
+            Some(points) => {
+                out.vertices.extend_from_slice(&[vertex(&points[0]), vertex(&points[1]), vertex(&points[2])]);
+                EdgeCode::push_triangle(points, inside_positive, self.root_side, &mut out.edges);
+            }
+            None => {
+                out.vertices.extend(self.snapped.iter().map(vertex));
+                EdgeCode::push_outline(&self.snapped, inside_positive, self.root_side, &mut out.edges);
+            }
+        }
         out.polygons.push(FramePolygon {
             vertices: vstart..out.vertices.len() as u32,
             kind: source.kind,
@@ -225,6 +254,7 @@ impl Setup {
 
     /// Intensity as a fractional-linear function: fitted on the three vertices that
     /// span the largest triangle (exact for a linear distribution).
+    #[inline(always)]
     fn linear_on_face(&self, plane: &Plane, vs: &[EyeVertex], inv_z: &[f64; 3]) -> FracLin {
         let n = vs.len();
         let mut best = (0.0, 0, 1, 2);
@@ -249,10 +279,29 @@ impl Setup {
         let (q0, q1, q2) = (vs[i].intensity, vs[j].intensity, vs[k].intensity);
         // g . (p1 - p0) = q1 - q0, g . (p2 - p0) = q2 - q0, g . N = 0.
         let m = DMat3::from_cols(p1 - p0, p2 - p0, plane.normal).transpose();
-        let g =
-            if m.determinant().abs() > 1e-18 { m.inverse() * DVec3::new(q1 - q0, q2 - q0, 0.0) } else { DVec3::ZERO };
+        let g = solve_gradient(&m, DVec3::new(q1 - q0, q2 - q0, 0.0));
         let k0 = q0 - g.dot(p0);
         self.screen_triple(g, k0, inv_z)
+    }
+}
+
+/// `m.inverse() * rhs` where `m.determinant().abs() > 1e-18`, else zero: the
+/// intensity gradient of [`Setup::linear_on_face`].
+///
+/// glam 0.29's `DMat3::determinant` and `DMat3::inverse` written out with glam's
+/// own operations in its order (the same bits; tested): the compiler kept `inverse`
+/// out of line in the GP's face set-up (a call and a matrix through memory per
+/// face), and the determinant is the inverse's own (`z . (x × y)`), computed once.
+#[inline(always)]
+fn solve_gradient(m: &DMat3, rhs: DVec3) -> DVec3 {
+    let tmp2 = m.x_axis.cross(m.y_axis);
+    let det = m.z_axis.dot(tmp2);
+    if det.abs() > 1e-18 {
+        let (tmp0, tmp1) = (m.y_axis.cross(m.z_axis), m.z_axis.cross(m.x_axis));
+        let inv_det = DVec3::splat(det.recip());
+        DMat3::from_cols(tmp0 * inv_det, tmp1 * inv_det, tmp2 * inv_det).transpose() * rhs
+    } else {
+        DVec3::ZERO
     }
 }
 
@@ -283,14 +332,22 @@ pub fn snap_outline(outline: &[DVec2], s: &mut Vec<(ScreenFx, ScreenFx)>) -> Opt
 /// its turns is its doubled area).
 #[inline]
 fn snap_triangle(outline: [&DVec2; 3], s: &mut Vec<(ScreenFx, ScreenFx)>) -> Option<bool> {
-    let q = outline.map(|p| (ScreenFx::from_f64(p.x), ScreenFx::from_f64(p.y)));
     s.clear();
+    let (inside, q) = snap_triangle_points(outline)?;
+    s.extend_from_slice(&q);
+    Some(inside)
+}
+
+/// [`snap_triangle`] without the list: the orientation and the snapped points,
+/// or `None` for a degenerate triangle.
+#[inline(always)]
+fn snap_triangle_points(outline: [&DVec2; 3]) -> Option<(bool, [(ScreenFx, ScreenFx); 3])> {
+    let q = outline.map(|p| (ScreenFx::from_f64(p.x), ScreenFx::from_f64(p.y)));
     if q[0] == q[1] || q[1] == q[2] || q[2] == q[0] {
         return None;
     }
-    s.extend_from_slice(&q);
     let area2 = shoelace(&q);
-    (area2 != 0).then_some(area2 > 0)
+    (area2 != 0).then_some((area2 > 0, q))
 }
 
 /// The first step of [`snap_outline`]: the outline snapped into `s` without
@@ -424,6 +481,31 @@ mod tests {
         fn range(&mut self, lo: f64, hi: f64) -> f64 {
             lo + (hi - lo) * (self.next() >> 11) as f64 / (1u64 << 53) as f64
         }
+    }
+
+    /// [`solve_gradient`] is glam's determinant test and inverse, bit for bit:
+    /// random matrices from tiny to huge entries, singular and nearly singular
+    /// ones, zero right-hand sides (the signs of zero products) among them.
+    #[test]
+    fn solve_gradient_is_glams_inverse() {
+        let mut rng = Rng(0x6AD1_E27F_0A11);
+        let mut taken = [0usize; 2];
+        for case in 0..100_000 {
+            let scale = [1e-7, 1e-3, 1.0, 1e3, 1e6][case % 5];
+            let mut v = || rng.range(-scale, scale);
+            let mut m = DMat3::from_cols_array(&[v(), v(), v(), v(), v(), v(), v(), v(), v()]);
+            if case % 7 == 0 {
+                // Singular: the third row the sum of the first two.
+                let t = m.transpose();
+                m = DMat3::from_cols(t.x_axis, t.y_axis, t.x_axis + t.y_axis).transpose();
+            }
+            let rhs = if case % 3 == 0 { DVec3::ZERO } else { DVec3::new(v(), v(), 0.0) };
+            let plain = if m.determinant().abs() > 1e-18 { m.inverse() * rhs } else { DVec3::ZERO };
+            let got = solve_gradient(&m, rhs);
+            assert_eq!(got.to_array().map(f64::to_bits), plain.to_array().map(f64::to_bits), "{m:?} {rhs:?}");
+            taken[usize::from(m.determinant().abs() > 1e-18)] += 1;
+        }
+        assert!(taken.iter().all(|&k| k > 1000), "both branches tested: {taken:?}");
     }
 
     #[test]

@@ -50,11 +50,13 @@ pub struct ScreenFx(pub i32);
 impl ScreenFx {
     /// Rounds a pixel coordinate to the snapping grid (callers pass finite values
     /// inside the clipped window).
+    #[inline]
     pub fn from_f64(v: f64) -> Self {
         Self((v * f64::from(SNAP_ONE)).round() as i32)
     }
 
     /// The coordinate in pixels.
+    #[inline]
     pub fn to_f32(self) -> f32 {
         self.0 as f32 / SNAP_ONE as f32
     }
@@ -201,15 +203,7 @@ impl EdgeCode {
         out: &mut Vec<EdgeCode>,
     ) {
         if let &[p0, p1, p2] = points {
-            // A triangle (nearly every polygon of the GP): the bounds tested on a
-            // fixed-size array, the three codes straight-line and one append to
-            // `out` (one capacity check). Through the general loop below the
-            // compiler spilled the loop state around the inlined `new_fast`: about
-            // 126 more instructions per triangle on `many`.
-            if fast_bounds(&[p0, p1, p2], root_side) {
-                let root_bits = root_side.trailing_zeros();
-                let code = |a, b| Self::new_fast(a, b, inside_positive, root_bits).expect("consecutive points differ");
-                out.extend_from_slice(&[code(p0, p1), code(p1, p2), code(p2, p0)]);
+            if Self::push_triangle_fast([p0, p1, p2], inside_positive, root_side, out) {
                 return;
             }
         }
@@ -227,6 +221,50 @@ impl EdgeCode {
             out.extend(points.windows(2).map(|w| code(w[0], w[1])));
             out.push(code(last, first));
         }
+    }
+
+    /// [`EdgeCode::push_outline`] of a triangle (nearly every polygon of the GP),
+    /// inline in its caller (the GP's set-up hands it the snapped points in
+    /// registers).
+    ///
+    /// # Panics
+    /// If two of the points are equal (a snapped triangle has none).
+    #[inline]
+    pub fn push_triangle(
+        points: [(ScreenFx, ScreenFx); 3],
+        inside_positive: bool,
+        root_side: u32,
+        out: &mut Vec<EdgeCode>,
+    ) {
+        if !Self::push_triangle_fast(points, inside_positive, root_side, out) {
+            Self::push_outline(&points, inside_positive, root_side, out);
+        }
+    }
+
+    /// A triangle's three codes when it lies within [`fast_bounds`] (then `true`;
+    /// else `false`, nothing appended): the bounds tested on a fixed-size array,
+    /// the three codes straight-line, each appended as soon as it is made (after
+    /// one reservation). Through [`EdgeCode::push_outline`]'s general loop the
+    /// compiler spilled the loop state around the inlined `new_fast`: about 126
+    /// more instructions per triangle on `many`.
+    #[inline(always)]
+    fn push_triangle_fast(
+        points: [(ScreenFx, ScreenFx); 3],
+        inside_positive: bool,
+        root_side: u32,
+        out: &mut Vec<EdgeCode>,
+    ) -> bool {
+        if !fast_bounds(&points, root_side) {
+            return false;
+        }
+        let [p0, p1, p2] = points;
+        let root_bits = root_side.trailing_zeros();
+        let code = |a, b| Self::new_fast(a, b, inside_positive, root_bits).expect("consecutive points differ");
+        out.reserve(3);
+        out.push(code(p0, p1));
+        out.push(code(p1, p2));
+        out.push(code(p2, p0));
+        true
     }
 
     /// [`EdgeCode::new`] for endpoints and root side within [`fast_bounds`] (outside
@@ -439,8 +477,9 @@ mod tests {
     proptest::proptest! {
         #![proptest_config(proptest::prelude::ProptestConfig::with_cases(20_000))]
 
-        /// The straight-line triangle path of [`EdgeCode::push_outline`] gives the
-        /// definition's codes, in order, over random and extreme corners.
+        /// The straight-line triangle path of [`EdgeCode::push_outline`], and
+        /// [`EdgeCode::push_triangle`], give the definition's codes, in order, over
+        /// random and extreme corners.
         #[test]
         fn push_outline_of_a_triangle_is_the_plain_definition(
             xs in proptest::array::uniform3(coordinate()),
@@ -456,7 +495,10 @@ mod tests {
             if let Some(want) = want {
                 let mut got = Vec::new();
                 EdgeCode::push_outline(&pts, inside, root_side, &mut got);
-                proptest::prop_assert_eq!(got, want);
+                proptest::prop_assert_eq!(&got, &want);
+                let mut got = vec![want[0]];
+                EdgeCode::push_triangle([pts[0], pts[1], pts[2]], inside, root_side, &mut got);
+                proptest::prop_assert_eq!(&got[1..], &want[..]);
             }
         }
     }
