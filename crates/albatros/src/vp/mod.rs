@@ -174,6 +174,8 @@ impl VideoProcessor {
         let mut colors = cc::CellColors::default();
         let mut inner = Counters::new(self.gq.root_level);
         let vb = &mut self.vb;
+        // The background's colour encoded once for the frame.
+        let background = vb.prepare_flat(frame.background);
         // The last polygon seen (its stretch and index there) and its one colour,
         // if it has one ([`ColorComputers::flat_color`]).
         let mut flat: Option<((usize, usize), Option<Vec3>)> = None;
@@ -214,7 +216,7 @@ impl VideoProcessor {
                     // The VB's writes are counted once per frame (`run`).
                     cc.shade_accumulate::<STATS>(poly, vis, &mut colors, &mut inner, vb);
                 }
-                None => vb.accumulate_flat(vis, frame.background),
+                None => vb.accumulate_prepared(vis, &background),
             },
         );
         if STATS {
