@@ -1757,6 +1757,39 @@ mod tests {
     }
 
     /// Marsaglia's xorshift64: `next(n)` is a deterministic number in `0..n`.
+    /// Up to `n` random edges (fewer where two points coincide) of a screen of
+    /// `root_side` pixels, each with an end in or around the 4 x 4 cell at `(px, py)`
+    /// and the other there too or anywhere on the screen, and their active entries
+    /// at the cell.
+    fn edges_around_cell(
+        next: &mut impl FnMut(i64) -> i64,
+        px: u32,
+        py: u32,
+        root_side: u32,
+        n: usize,
+    ) -> (Vec<super::super::edge::EdgeCode>, Vec<super::super::gq::ActiveEdge>) {
+        use super::super::edge::{EdgeCode, ScreenFx};
+        use super::super::gq::ActiveEdge;
+        let one = i64::from(SNAP_ONE);
+        let span = i64::from(root_side) * one;
+        let mut point = |near: bool| {
+            let (x, y) = if near {
+                (i64::from(px) * one + next(12 * one) - 4 * one, i64::from(py) * one + next(12 * one) - 4 * one)
+            } else {
+                (next(span + 1), next(span + 1))
+            };
+            (ScreenFx(x.clamp(0, span) as i32), ScreenFx(y.clamp(0, span) as i32))
+        };
+        let edges: Vec<EdgeCode> =
+            (0..n).filter_map(|i| EdgeCode::new(point(i % 2 == 0), point(true), i % 3 == 0, root_side)).collect();
+        let active = edges
+            .iter()
+            .enumerate()
+            .map(|(i, e)| ActiveEdge::at_cell(i as u32, e, i64::from(px), i64::from(py), 4))
+            .collect();
+        (edges, active)
+    }
+
     fn xorshift(mut state: u64) -> impl FnMut(i64) -> i64 {
         move |n| {
             state ^= state << 13;
@@ -2280,8 +2313,6 @@ mod tests {
     /// plain definition).
     #[test]
     fn portable_fragment_code_is_fragment_code() {
-        use super::super::edge::{EdgeCode, ScreenFx};
-        use super::super::gq::ActiveEdge;
         let mut next = xorshift(0x7AB1_E5C0_DE5A_11CE);
         for k in 0..20_000 {
             let root_side = 4u32 << (k % 12);
@@ -2290,23 +2321,7 @@ mod tests {
             spp.vertex_exact = k % 3 != 1;
             let cells = i64::from(root_side / CELL_SIDE);
             let (px, py) = (4 * next(cells) as u32, 4 * next(cells) as u32);
-            let one = i64::from(SNAP_ONE);
-            let span = i64::from(root_side) * one;
-            let mut point = |near: bool| {
-                let (x, y) = if near {
-                    (i64::from(px) * one + next(12 * one) - 4 * one, i64::from(py) * one + next(12 * one) - 4 * one)
-                } else {
-                    (next(span + 1), next(span + 1))
-                };
-                (ScreenFx(x.clamp(0, span) as i32), ScreenFx(y.clamp(0, span) as i32))
-            };
-            let edges: Vec<EdgeCode> =
-                (0..4).filter_map(|i| EdgeCode::new(point(i % 2 == 0), point(true), i % 3 == 0, root_side)).collect();
-            let active: Vec<ActiveEdge> = edges
-                .iter()
-                .enumerate()
-                .map(|(i, e)| ActiveEdge::at_cell(i as u32, e, i64::from(px), i64::from(py), 4))
-                .collect();
+            let (edges, active) = edges_around_cell(&mut next, px, py, root_side, 4);
             let frag =
                 Fragment { px, py, active: &active, cells: super::super::gq::ONE_CELL, bbox: super::super::gq::NO_BOX };
             let mut counters = Counters::new(3);
@@ -2331,8 +2346,7 @@ mod tests {
     /// cells at a screen's ragged right and bottom borders, counting on and off.
     #[test]
     fn process_is_process_plain() {
-        use super::super::edge::{EdgeCode, ScreenFx};
-        use super::super::gq::{ActiveEdge, NO_BOX};
+        use super::super::gq::NO_BOX;
         let mut next = xorshift(0x0F0F_5EED_A5A5_1234);
         // Per level (screens up to 1024 pixels) and mode, two SPP sets fed alike.
         let mut sets: Vec<Option<(SubpixelProcessors, SubpixelProcessors)>> = (0..18).map(|_| None).collect();
@@ -2348,24 +2362,8 @@ mod tests {
             (a.vertex_exact, b.vertex_exact) = (vertex_exact, vertex_exact);
             let cells = i64::from(root_side / CELL_SIDE);
             let (px, py) = (4 * next(cells) as u32, 4 * next(cells) as u32);
-            let one = i64::from(SNAP_ONE);
-            let span = i64::from(root_side) * one;
             let n = next(5) as usize;
-            let mut point = |near: bool| {
-                let (x, y) = if near {
-                    (i64::from(px) * one + next(12 * one) - 4 * one, i64::from(py) * one + next(12 * one) - 4 * one)
-                } else {
-                    (next(span + 1), next(span + 1))
-                };
-                (ScreenFx(x.clamp(0, span) as i32), ScreenFx(y.clamp(0, span) as i32))
-            };
-            let edges: Vec<EdgeCode> =
-                (0..n).filter_map(|i| EdgeCode::new(point(i % 2 == 0), point(true), i % 3 == 0, root_side)).collect();
-            let active: Vec<ActiveEdge> = edges
-                .iter()
-                .enumerate()
-                .map(|(i, e)| ActiveEdge::at_cell(i as u32, e, i64::from(px), i64::from(py), 4))
-                .collect();
+            let (edges, active) = edges_around_cell(&mut next, px, py, root_side, n);
             let bbox = if next(3) == 0 {
                 NO_BOX
             } else {

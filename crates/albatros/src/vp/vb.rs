@@ -1077,7 +1077,7 @@ impl VideoBuffer {
 
     /// `color` encoded for [`Self::accumulate_prepared`]: the VP encodes the
     /// background's colour once a frame rather than once per cell (default's
-    /// colour + VB 145.6 -> 143.5 M instructions).
+    /// colour + VB 145.6 -> 143.3 M instructions).
     pub fn prepare_flat(&self, color: Vec3) -> FlatColor {
         let word = match &self.memory {
             Memory::Log { scale, .. } => {
@@ -3618,7 +3618,8 @@ mod tests {
     }
 
     /// The background's F1 with its colour encoded once (in the call, or
-    /// beforehand) gives the per-pixel F1's words, in every mode, on random cells and colours (black, white, above one).
+    /// beforehand) gives the per-pixel F1's words, in every mode, on random cells
+    /// and colours (black, white, above one).
     #[test]
     fn accumulate_flat_matches_accumulate() {
         let mut rng = Rng(0xF1A7);
