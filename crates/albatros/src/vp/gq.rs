@@ -328,13 +328,24 @@ impl Share {
         self.p * self.q == 1 && self.strip == Self::ALL_COLUMNS
     }
 
-    /// Whether pixel `(x, y)` is this VP's.
+    /// Whether pixel `(x, y)` is this VP's: its column's and its row's
+    /// ([`Self::owns_column`], [`Self::owns_row`]; a share is a product of the two).
     #[inline]
     pub fn owns_pixel(&self, x: u32, y: u32) -> bool {
-        (x / self.tile) % self.p == self.i
-            && (y / self.tile) % self.q == self.j
-            && x >= self.strip.0
-            && x < self.strip.1
+        self.owns_column(x) && self.owns_row(y)
+    }
+
+    /// Whether the share holds pixels of column `x`: its tile column is the VP's
+    /// and it lies in the strip.
+    #[inline]
+    pub fn owns_column(&self, x: u32) -> bool {
+        (x / self.tile) % self.p == self.i && x >= self.strip.0 && x < self.strip.1
+    }
+
+    /// Whether the share holds pixels of row `y`: its tile row is the VP's.
+    #[inline]
+    pub fn owns_row(&self, y: u32) -> bool {
+        (y / self.tile) % self.q == self.j
     }
 
     /// Whether the share's strip holds any pixel of columns `x0 .. x1`.

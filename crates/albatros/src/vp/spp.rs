@@ -442,6 +442,29 @@ fn lane_bits_avx2(lanes: std::arch::x86_64::__m256i) -> u16 {
     _mm_movemask_epi8(_mm_packs_epi16(_mm256_castsi256_si128(lanes), _mm256_extracti128_si256::<1>(lanes))) as u16
 }
 
+/// Which of each cell column's four pixel columns (bit `x`) and each cell row's four
+/// pixel rows (bit `y`) lie on the screen and in an SPP set's share
+/// ([`SubpixelProcessors::owned_lines`]).
+struct OwnedLines {
+    columns: Vec<u8>,
+    rows: Vec<u8>,
+}
+
+impl OwnedLines {
+    /// Cell `(cx, cy)` as a frame starts: its pixels off the screen or outside the
+    /// share pre-masked (all 16 subpixels set).
+    fn cleared_cell(&self, cx: usize, cy: usize) -> [u16; 16] {
+        let (columns, rows) = (self.columns[cx], self.rows[cy]);
+        std::array::from_fn(|i| if columns >> (i & 3) & rows >> (i >> 2) & 1 != 0 { 0 } else { FULL })
+    }
+
+    /// The open pixels (on the screen and in the share): open columns times open rows.
+    fn open_pixels(&self) -> u64 {
+        let count = |lines: &[u8]| lines.iter().map(|b| u64::from(b.count_ones())).sum::<u64>();
+        count(&self.columns) * count(&self.rows)
+    }
+}
+
 impl SubpixelProcessors {
     /// SPPs for a screen, with the given table.
     pub fn new(width: u32, height: u32, mode: SppMode) -> Self {
@@ -486,12 +509,11 @@ impl SubpixelProcessors {
                         (cx as u32 * CELL_SIDE..(cx as u32 + 1) * CELL_SIDE).any(|x| inside(a, x) != inside(b, x))
                     })
                     .collect();
-                let open = |m: &[u16; 16]| m.iter().filter(|&&m| m == 0).count() as u64;
+                let lines = self.owned_lines();
                 for cy in 0..self.rows {
                     for &cx in &changed {
                         let c = cy * self.stride + cx;
-                        let cell = self.cleared_cell(cx as u32, cy as u32);
-                        self.open_pixels = self.open_pixels - open(&self.cleared[c]) + open(&cell);
+                        let cell = lines.cleared_cell(cx, cy);
                         self.cleared[c] = cell;
                         if self.clean {
                             // The rest of the memory is in its cleared state already.
@@ -499,14 +521,16 @@ impl SubpixelProcessors {
                         }
                     }
                 }
+                self.open_pixels = lines.open_pixels();
                 self.cleared_share = Some(self.share);
             }
             _ => {
+                let lines = self.owned_lines();
                 self.cleared = (0..self.rows * self.stride)
-                    .map(|c| self.cleared_cell((c % self.stride) as u32, (c / self.stride) as u32))
+                    .map(|c| lines.cleared_cell(c % self.stride, c / self.stride))
                     .collect();
+                self.open_pixels = lines.open_pixels();
                 self.cleared_share = Some(self.share);
-                self.open_pixels = self.cleared.iter().flatten().filter(|&&m| m == 0).count() as u64;
                 self.clean = false;
             }
         }
@@ -517,18 +541,21 @@ impl SubpixelProcessors {
         self.clean = false;
     }
 
-    /// Cell `(cx, cy)` as a frame starts: its pixels off the screen or outside the
-    /// share pre-masked (all 16 subpixels set).
-    fn cleared_cell(&self, cx: u32, cy: u32) -> [u16; 16] {
-        let mut m = [0u16; 16];
-        for (i, px) in m.iter_mut().enumerate() {
-            let x = cx * CELL_SIDE + (i as u32 & 3);
-            let y = cy * CELL_SIDE + (i as u32 >> 2);
-            if x >= self.width || y >= self.height || !self.share.owns_pixel(x, y) {
-                *px = FULL;
-            }
+    /// The share's pixel columns and rows on the screen, cell by cell
+    /// ([`OwnedLines`]): a pixel is open as a frame starts when both its column and
+    /// its row are (a share is a product of columns and rows, [`Share::owns_pixel`]).
+    /// Found once per column and row rather than per pixel: the cleared memory of a
+    /// 1920 x 1080 screen is 2 M pixels, and a strip matrix remakes a few of its
+    /// cell columns every frame.
+    fn owned_lines(&self) -> OwnedLines {
+        let side = CELL_SIDE as usize;
+        let bits = |n: usize, owns: &dyn Fn(u32) -> bool| -> Vec<u8> {
+            (0..n).map(|c| (0..side).fold(0u8, |b, k| b | u8::from(owns((c * side + k) as u32)) << k)).collect()
+        };
+        OwnedLines {
+            columns: bits(self.stride, &|x| x < self.width && self.share.owns_column(x)),
+            rows: bits(self.rows, &|y| y < self.height && self.share.owns_row(y)),
         }
-        m
     }
 
     /// Says that [`Self::background`] has visited every cell of the share since
@@ -1754,6 +1781,45 @@ mod tests {
             }
         }
         assert_eq!(box_pixels(8, 4, super::super::gq::NO_BOX), 0xFFFF);
+    }
+
+    /// The mask memory as a frame starts pre-masks exactly the pixels off the screen
+    /// or outside the share, pixel by pixel ([`Share::owns_pixel`]): for interleaved
+    /// shares and strips of a screen whose sides are not whole cells, made whole
+    /// and remade after a strip moves.
+    #[test]
+    fn cleared_memory_pre_masks_the_pixels_outside_the_share() {
+        let (width, height) = (70, 37);
+        let check = |spp: &SubpixelProcessors| {
+            for cy in 0..spp.rows {
+                for cx in 0..spp.stride {
+                    let want: [u16; 16] = std::array::from_fn(|i| {
+                        let (x, y) = ((cx * 4 + (i & 3)) as u32, (cy * 4 + (i >> 2)) as u32);
+                        if x < width && y < height && spp.share.owns_pixel(x, y) {
+                            0
+                        } else {
+                            FULL
+                        }
+                    });
+                    assert_eq!(*spp.mask(cx, cy), want, "share {:?}, cell ({cx}, {cy})", spp.share);
+                }
+            }
+            let open = (0..width).flat_map(|x| (0..height).map(move |y| (x, y)));
+            let open = open.filter(|&(x, y)| spp.share.owns_pixel(x, y)).count() as u64;
+            assert_eq!(spp.open_pixels(), open, "share {:?}", spp.share);
+        };
+        for share in [Share::WHOLE, Share::interleaved(8, 3, 2, 1, 1), Share::interleaved(16, 2, 3, 0, 2)] {
+            let mut spp = SubpixelProcessors::new(width, height, SppMode::Area);
+            spp.share = share;
+            spp.clear();
+            check(&spp);
+        }
+        let mut spp = SubpixelProcessors::new(width, height, SppMode::Area);
+        for strip in [(0, 32), (16, 48), (48, 80), (0, 80), (32, 64), (8, 16)] {
+            spp.share = Share::strip(8, strip.0, strip.1);
+            spp.clear();
+            check(&spp);
+        }
     }
 
     /// Marsaglia's xorshift64: `next(n)` is a deterministic number in `0..n`.
