@@ -413,6 +413,10 @@ pub struct CellProcessors {
     memories: Vec<MaskMemory>,
     /// The share the memories' cleared states were made for.
     cleared_share: Share,
+    /// Whether the cleared states hold other VPs' cells, pre-masked on the share's
+    /// tile level only ([`Self::pre_mask_share`]). Without them the marks are closed
+    /// downward and [`Self::covered`] reads one level.
+    share_pre_masked: bool,
     /// Active-edge lists, four per level, each `stride` entries long, all in one
     /// vector: level `k`'s block of four at `4 k stride`, child `c`'s list at `c stride`
     /// in it. A cell's children's lists are on the level below, filled in one pass
@@ -499,6 +503,7 @@ impl CellProcessors {
             recorder: None,
             memories,
             cleared_share: Share::WHOLE,
+            share_pre_masked: false,
             lists: Vec::new(),
             stride: 0,
             inside: vec![Vec::new(); root_level as usize + 1],
@@ -524,7 +529,8 @@ impl CellProcessors {
             m.reset_cleared();
         }
         let share = self.share;
-        if !share.is_whole() && share.tile >= 4 && share.tile <= self.side(0) {
+        self.share_pre_masked = !share.is_whole() && share.tile >= 4 && share.tile <= self.side(0);
+        if self.share_pre_masked {
             let level = self.root_level + 2 - share.tile.trailing_zeros();
             let m = &mut self.memories[level as usize];
             for cy in 0..m.rows {
@@ -723,12 +729,30 @@ impl CellProcessors {
     }
 
     /// Whether the cell of Z-order index `z` on level `level`, or its ancestor on a
-    /// level `from..=level` in use, is marked covered. The deepest level first: a
-    /// hidden polygon's smallest cells are the likeliest covered (most of `many`'s
-    /// triangles are hidden), and the levels in use are walked by their bits.
+    /// level `from..=level` in use, is marked covered.
+    ///
+    /// The marks are closed downward over the levels in use: a cell marked on a level
+    /// in use has every descendant on the deeper levels in use marked too (a cell is
+    /// marked IN on the way down and its subtree filled below it, [`Self::fill`];
+    /// Greene's rule marks a parent only when its four children are marked; the cells
+    /// off the screen are pre-masked on every level; tested by
+    /// `marks_are_closed_downward`). So, unless other VPs' cells are pre-masked (on
+    /// the share's tile level only: [`Self::pre_mask_share`], a matrix of VPs), the
+    /// cell's ancestor on the deepest level in use decides alone: one read where the
+    /// walk up the levels took one per level for every polygon not hidden (most of
+    /// `many`'s triangles are hidden at subpixel level, below the marks).
+    /// With other VPs' cells pre-masked, the levels in use are walked, the deepest
+    /// first (a hidden polygon's smallest cells are the likeliest covered).
     #[inline(always)]
     fn covered(&self, z: usize, level: u32, from: u32) -> bool {
         let mut levels = self.masks.0 & ((2u32 << level) - 1) & !((1u32 << from) - 1);
+        if !self.share_pre_masked {
+            if levels == 0 {
+                return false;
+            }
+            let k = 31 - levels.leading_zeros();
+            return self.memories[k as usize].get_z(z >> (2 * (level - k)));
+        }
         while levels != 0 {
             let k = 31 - levels.leading_zeros();
             levels &= !(1 << k);
@@ -738,6 +762,27 @@ impl CellProcessors {
             }
         }
         false
+    }
+
+    /// Whether the marks are closed downward over the levels in use (see
+    /// [`Self::covered`]): every marked cell of a level in use has every descendant
+    /// marked on each deeper level in use. For tests.
+    pub fn marks_closed_downward(&self) -> bool {
+        let in_use: Vec<u32> = (1..=self.root_level).filter(|&k| self.masks.has(k)).collect();
+        for (i, &k) in in_use.iter().enumerate() {
+            let m = &self.memories[k as usize];
+            let side = 1usize << k;
+            for z in (0..side * side).filter(|&z| m.get_z(z)) {
+                for &deeper in &in_use[i + 1..] {
+                    let shift = 2 * (deeper - k) as usize;
+                    let d = &self.memories[deeper as usize];
+                    if !(z << shift..(z + 1) << shift).all(|z| d.get_z(z)) {
+                        return false;
+                    }
+                }
+            }
+        }
+        true
     }
 
     /// The level of a box's size (`bbox`, not empty): the deepest level at most L - 1
@@ -1635,6 +1680,76 @@ mod tests {
             reached += want.len();
         }
         assert!(reached > 10_000, "{reached}");
+    }
+
+    /// The marks stay closed downward over the levels in use ([`CellProcessors::covered`]
+    /// reads only the deepest), and `covered` answers as the walk over every level
+    /// in use does: triangles (opaque and not) descended by the filling and the
+    /// counting descents, one over another, with Greene's marks of last-level cells
+    /// between them, under several sets of levels in use, on a screen whose side is
+    /// not a power of two (cells off it pre-masked).
+    #[test]
+    fn marks_are_closed_downward() {
+        let (w, h) = (200u32, 150u32);
+        let sets = [
+            MaskLevels::ALL,
+            MaskLevels::NONE,
+            MaskLevels::range(3, 6),
+            MaskLevels(1 << 2 | 1 << 4 | 1 << 6),
+            MaskLevels(1 << 1 | 1 << 5),
+            MaskLevels::mode_i(6),
+        ];
+        let mut state = 0x2545_F491_4F6C_DD1D_u64;
+        let mut next = move |n: u64| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state % n
+        };
+        for (i, &masks) in sets.iter().enumerate() {
+            for counting in [false, true] {
+                let mut gq = CellProcessors::new(w, h, masks);
+                gq.hierarchical = !counting;
+                gq.clear();
+                let root = gq.root_level;
+                let root_side = gq.side(0);
+                let mut counters = Counters::new(root);
+                for k in 0..400 {
+                    let Some((edges, bbox, _)) = random_triangle(k, root_side, &mut next) else {
+                        continue;
+                    };
+                    let bbox = [bbox[0].min(w), bbox[1].min(w), bbox[2].min(h), bbox[3].min(h)];
+                    if bbox[0] >= bbox[1] || bbox[2] >= bbox[3] {
+                        continue;
+                    }
+                    let poly = GqPolygon { edges: &edges, opaque: next(5) != 0, bbox };
+                    if counting {
+                        gq.descend::<true>(&poly, &mut counters, &mut |_| {});
+                    } else {
+                        gq.descend_filling(&poly, &mut counters, &mut |_| {});
+                        // Last-level cells the SPPs would find covered.
+                        let mut cells: Vec<usize> = (0..next(6))
+                            .map(|_| morton(next(u64::from(w / 4)) as u32, next(u64::from(h / 4)) as u32))
+                            .collect();
+                        cells.sort_unstable();
+                        gq.mark_covered_cells(&mut cells);
+                    }
+                    assert!(gq.marks_closed_downward(), "levels {i}, counting {counting}, triangle {k}");
+                    for _ in 0..20 {
+                        let level = 1 + next(u64::from(root)) as u32;
+                        let from = 1 + next(u64::from(level)) as u32;
+                        let z = next(1 << (2 * level)) as usize;
+                        let walk = (from..=level)
+                            .any(|k| masks.has(k) && gq.memories[k as usize].get_z(z >> (2 * (level - k))));
+                        assert_eq!(
+                            gq.covered(z, level, from),
+                            walk,
+                            "levels {i}, cell {z} of level {level} from {from}"
+                        );
+                    }
+                }
+            }
+        }
     }
 
     proptest::proptest! {
