@@ -99,9 +99,9 @@ pub struct SubpixelProcessors {
     width: u32,
     height: u32,
     /// Subpixel mask memory, a `[u16; 16]` (256 bits) per 4x4 cell.
-    masks: Vec<[u16; 16]>,
+    masks: Vec<Words16>,
     /// The mask memory as a frame starts (pre-masked pixels set), for `share`.
-    cleared: Vec<[u16; 16]>,
+    cleared: Vec<Words16>,
     cleared_share: Option<Share>,
     /// The mask memory holds the cleared state (the background pass of the last
     /// frame put it back cell by cell), so the next [`Self::clear`] has nothing to do.
@@ -111,13 +111,21 @@ pub struct SubpixelProcessors {
     open_pixels: u64,
     /// The thinning patterns ([`thinning`]) of the 64 transparency codes: an array,
     /// so that a code masked to 6 bits needs no bounds check.
-    thin: Box<[[u16; 16]; 64]>,
+    thin: Box<[Words16; 64]>,
     /// The processor has what [`Self::table_code_avx2`] is compiled for
     /// ([`has_avx2`]) and no AVX-512 (whose vertex pixels [`vertex_words`] takes):
     /// detected once here, a check per fragment cost some 20 instructions of the
     /// fragment's dispatch. Private, so only the detection sets it.
     avx2: bool,
 }
+
+/// Sixteen words of a cell, a pixel's each (a cell's subpixel mask, a thinning
+/// pattern), aligned to 32 bytes: the AVX2 step reads and writes them as one
+/// register, where an access the compiler cannot prove aligned it splits in two (its
+/// tuning for x86-64 in general): 3 instructions a fragment more.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(C, align(32))]
+struct Words16([u16; 16]);
 
 /// Rounds a pixel-relative V (in [`super::edge::EdgeCoord`] units) to eighths of a
 /// pixel: `round(8 V)`, halves up.
@@ -357,9 +365,9 @@ macro_rules! table_code_avx2_body {
     ($spp:expr, $frag:expr, $edges:expr) => {{
         let body = |spp: &SubpixelProcessors, frag: &Fragment, edges: &[EdgeCode]| -> std::arch::x86_64::__m256i {
             use std::arch::x86_64::{
-                _mm256_and_si256, _mm256_andnot_si256, _mm256_cmpeq_epi8, _mm256_or_si256, _mm256_permutevar8x32_epi32,
-                _mm256_set1_epi64x, _mm256_set1_epi8, _mm256_set_epi64x, _mm256_setr_epi32, _mm256_setr_epi8,
-                _mm256_setzero_si256, _mm256_shuffle_epi8, _mm256_xor_si256, _mm_extract_epi16,
+                _mm256_and_si256, _mm256_load_si256, _mm256_or_si256, _mm256_permutevar8x32_epi32, _mm256_set1_epi64x,
+                _mm256_set_epi64x, _mm256_setr_epi32, _mm256_setr_epi8, _mm256_shuffle_epi8, _mm256_xor_si256,
+                _mm_extract_epi16,
             };
             let ones = _mm256_set1_epi64x(-1);
             let (mut rows, mut columns) = (ones, ones);
@@ -380,7 +388,10 @@ macro_rules! table_code_avx2_body {
                     word(_mm_extract_epi16::<1>(index) as usize),
                     word(_mm_extract_epi16::<0>(index) as usize),
                 );
-                let flip = _mm256_cmpeq_epi8(_mm256_set1_epi8(i8::from(e.lr)), _mm256_setzero_si256());
+                // SAFETY: an entry of `FLIP` is 32 bytes aligned to 32, a register's
+                // size; `usize::from(bool)` is 0 or 1.
+                #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
+                let flip = unsafe { _mm256_load_si256(FLIP.0[usize::from(e.lr)].as_ptr().cast()) };
                 let mut w = _mm256_xor_si256(read, flip);
                 // The pixels of this cell near an endpoint of the edge, where the exact
                 // rule replaces the table. The endpoints' offsets from the cell serve
@@ -391,11 +402,16 @@ macro_rules! table_code_avx2_body {
                         w = vertex_words_avx2_body!(e, frag.px, frag.py, vertical, w, offsets);
                     }
                 }
-                // `rows &= !(!w & along)` and `columns &= w | along`, `along` all ones for
-                // a vertical edge.
-                let along = _mm256_cmpeq_epi8(_mm256_set1_epi8(e.tg as i8), _mm256_set1_epi8(Tg::Vertical as i8));
-                rows = _mm256_andnot_si256(_mm256_andnot_si256(w, along), rows);
-                columns = _mm256_and_si256(columns, _mm256_or_si256(w, along));
+                // `rows &= w | keep_rows` and `columns &= w | keep_columns`: a vertical
+                // edge keeps the columns, a horizontal one the rows.
+                let keep = &KEEP.0[usize::from(vertical)];
+                // SAFETY: `keep` is two registers' words, 64 bytes aligned to 32, the
+                // 2 x 32 bytes the aligned loads read.
+                #[allow(unsafe_code, reason = "aligned loads of arrays of a register's size")]
+                let (keep_rows, keep_columns) =
+                    unsafe { (_mm256_load_si256(keep[0].as_ptr().cast()), _mm256_load_si256(keep[1].as_ptr().cast())) };
+                rows = _mm256_and_si256(rows, _mm256_or_si256(w, keep_rows));
+                columns = _mm256_and_si256(columns, _mm256_or_si256(w, keep_columns));
             }
             // Columns to rows: set `(x, y)` from 16-bit lane `4 x + y` to `4 y + x`. In
             // each 128-bit half (columns `x` and `x + 1`) the shuffle puts lane `4 x + y`
@@ -501,12 +517,12 @@ impl SubpixelProcessors {
             rows,
             width,
             height,
-            masks: vec![[0; 16]; stride * rows],
+            masks: vec![Words16([0; 16]); stride * rows],
             cleared: Vec::new(),
             open_pixels: 0,
             cleared_share: None,
             clean: false,
-            thin: Box::new(std::array::from_fn(|t| thinning(t as u8))),
+            thin: Box::new(std::array::from_fn(|t| Words16(thinning(t as u8)))),
             avx2: has_avx2() && !has_avx512(),
         };
         s.clear();
@@ -536,11 +552,11 @@ impl SubpixelProcessors {
                     for &cx in &changed {
                         let c = cy * self.stride + cx;
                         let cell = self.cleared_cell(cx as u32, cy as u32);
-                        self.open_pixels = self.open_pixels - open(&self.cleared[c]) + open(&cell);
-                        self.cleared[c] = cell;
+                        self.open_pixels = self.open_pixels - open(&self.cleared[c].0) + open(&cell);
+                        self.cleared[c] = Words16(cell);
                         if self.clean {
                             // The rest of the memory is in its cleared state already.
-                            self.masks[c] = cell;
+                            self.masks[c] = Words16(cell);
                         }
                     }
                 }
@@ -548,10 +564,10 @@ impl SubpixelProcessors {
             }
             _ => {
                 self.cleared = (0..self.rows * self.stride)
-                    .map(|c| self.cleared_cell((c % self.stride) as u32, (c / self.stride) as u32))
+                    .map(|c| Words16(self.cleared_cell((c % self.stride) as u32, (c / self.stride) as u32)))
                     .collect();
                 self.cleared_share = Some(self.share);
-                self.open_pixels = self.cleared.iter().flatten().filter(|&&m| m == 0).count() as u64;
+                self.open_pixels = self.cleared.iter().flat_map(|m| m.0).filter(|&m| m == 0).count() as u64;
                 self.clean = false;
             }
         }
@@ -592,7 +608,7 @@ impl SubpixelProcessors {
     /// The mask memory word of the cell at `(cx, cy)`.
     #[inline]
     pub fn mask(&self, cx: usize, cy: usize) -> &[u16; 16] {
-        &self.masks[cy * self.stride + cx]
+        &self.masks[cy * self.stride + cx].0
     }
 
     /// The fragment's code: per pixel, the AND over the crossing edges of their
@@ -895,22 +911,22 @@ impl SubpixelProcessors {
         t: u8,
     ) -> (Visible, u16) {
         use std::arch::x86_64::{
-            __m256i, _mm256_and_si256, _mm256_andnot_si256, _mm256_cmpeq_epi16, _mm256_loadu_si256, _mm256_or_si256,
-            _mm256_set1_epi16, _mm256_setzero_si256, _mm256_store_si256, _mm256_storeu_si256, _mm256_testc_si256,
+            __m256i, _mm256_and_si256, _mm256_andnot_si256, _mm256_cmpeq_epi16, _mm256_load_si256, _mm256_or_si256,
+            _mm256_set1_epi16, _mm256_setzero_si256, _mm256_store_si256, _mm256_testc_si256,
         };
-        let thin: *const __m256i = self.thin[usize::from(t & 63)].as_ptr().cast();
+        let thin: *const __m256i = self.thin[usize::from(t & 63)].0.as_ptr().cast();
         let cell = (py / CELL_SIDE) as usize * self.stride + (px / CELL_SIDE) as usize;
-        let mask_ptr: *mut __m256i = self.masks[cell].as_mut_ptr().cast();
-        // SAFETY: a pattern and a cell's mask are 16 `u16`, the 32 bytes each
-        // unaligned load reads (and the store writes back).
-        #[allow(unsafe_code, reason = "unaligned loads of arrays of a register's size")]
-        let (thin, mask) = unsafe { (_mm256_loadu_si256(thin), _mm256_loadu_si256(mask_ptr)) };
+        let mask_ptr: *mut __m256i = self.masks[cell].0.as_mut_ptr().cast();
+        // SAFETY: a pattern and a cell's mask are 16 `u16` aligned to 32 bytes
+        // ([`Words16`]), the 32 bytes each aligned load reads (and the store writes back).
+        #[allow(unsafe_code, reason = "aligned loads of arrays of a register's size")]
+        let (thin, mask) = unsafe { (_mm256_load_si256(thin), _mm256_load_si256(mask_ptr)) };
         let visible = _mm256_andnot_si256(mask, _mm256_and_si256(code, thin));
         let now = _mm256_or_si256(mask, visible);
         // SAFETY: as the load of `mask` above.
-        #[allow(unsafe_code, reason = "an unaligned store into an array of a register's size")]
+        #[allow(unsafe_code, reason = "an aligned store into an array of a register's size")]
         unsafe {
-            _mm256_storeu_si256(mask_ptr, now);
+            _mm256_store_si256(mask_ptr, now);
         }
         let zero = _mm256_setzero_si256();
         let none = _mm256_cmpeq_epi16(visible, zero);
@@ -937,9 +953,9 @@ impl SubpixelProcessors {
         // with no store into the memories between the loads, the loop vectorises
         // (otherwise the mask's stores might alias the pattern: 130 instructions a
         // cell rather than about 30).
-        let thin = self.thin[usize::from(t & 63)];
+        let thin = self.thin[usize::from(t & 63)].0;
         let cell = (py / CELL_SIDE) as usize * self.stride + (px / CELL_SIDE) as usize;
-        let mask = self.masks[cell];
+        let mask = self.masks[cell].0;
         let mut now = [0u16; 16];
         let mut sets = [0u16; 16];
         // Counting only: pixels with a visible subpixel. (The subpixels set are
@@ -954,7 +970,7 @@ impl SubpixelProcessors {
                 pixels |= u16::from(visible != 0) << i;
             }
         }
-        self.masks[cell] = now;
+        self.masks[cell] = Words16(now);
         // First writes (pixels empty before with a visible subpixel now) and cover
         // (every word full) by byte masks: some 10 instructions fewer a fragment than
         // the compiler's reductions of the loop's bits.
@@ -969,7 +985,7 @@ impl SubpixelProcessors {
     /// set full).
     pub fn background(&mut self, cx: usize, cy: usize) -> Visible {
         let cell = cy * self.stride + cx;
-        let mask = &mut self.masks[cell];
+        let mask = &mut self.masks[cell].0;
         let mut sets = [0u16; 16];
         let mut first = 0u16;
         for i in 0..16 {
@@ -978,7 +994,7 @@ impl SubpixelProcessors {
                 first |= 1 << i;
             }
         }
-        *mask = self.cleared[cell];
+        *mask = self.cleared[cell].0;
         Visible { px: cx as u32 * CELL_SIDE, py: cy as u32 * CELL_SIDE, sets, first, covered: true }
     }
 
@@ -989,7 +1005,7 @@ impl SubpixelProcessors {
     pub fn background_covered(&mut self, cy: usize, columns: std::ops::Range<usize>) {
         let row = cy * self.stride;
         let cells = row + columns.start..row + columns.end;
-        debug_assert!(self.masks[cells.clone()].iter().all(|m| *m == [FULL; 16]));
+        debug_assert!(self.masks[cells.clone()].iter().all(|m| m.0 == [FULL; 16]));
         self.masks[cells.clone()].copy_from_slice(&self.cleared[cells]);
     }
 }
@@ -1677,6 +1693,21 @@ fn vertex_words_avx2(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64
     }
     out.0
 }
+
+/// [`table_code_avx2_body`]'s flip of an edge's words by its LR (entry `usize::from(lr)`):
+/// all ones for LR = 0 (the complements), none for LR = 1. A load where the mask
+/// had been made from the LR byte (a broadcast and a compare: 2 instructions an
+/// edge more).
+#[cfg(target_arch = "x86_64")]
+static FLIP: Aligned32<[[u64; 4]; 2]> = Aligned32([[u64::MAX; 4], [0; 4]]);
+
+/// [`table_code_avx2_body`]'s words that keep the rows and the columns (entry
+/// `usize::from(vertical)`, then rows, columns): a horizontal edge's words AND into the
+/// columns only, a vertical one's into the rows (`rows &= w | keep_rows`). Loads where
+/// the `along` mask had been made from the TG byte and applied with two `andn`: 3
+/// instructions an edge more.
+#[cfg(target_arch = "x86_64")]
+static KEEP: Aligned32<[[[u64; 4]; 2]; 2]> = Aligned32([[[u64::MAX; 4], [0; 4]], [[0; 4], [u64::MAX; 4]]]);
 
 /// [`vertex_words_avx2`]'s blend masks: entry `i` selects the 16-bit lane `i`.
 #[cfg(target_arch = "x86_64")]
@@ -2541,7 +2572,7 @@ mod tests {
                 _ => next(1 << 16) as u16,
             });
             let mask = [[0; 16], [FULL; 16], mask][(next(8) as usize).min(2)];
-            (a.masks[cell], b.masks[cell]) = (mask, mask);
+            (a.masks[cell].0, b.masks[cell].0) = (mask, mask);
             let t = if k % 3 == 0 { 0 } else { next(64) as u8 };
             let (mut ca, mut cb) = (Counters::new(level), Counters::new(level));
             let (got, want) = if k % 4 == 0 {
@@ -2587,7 +2618,7 @@ mod tests {
                 1 => FULL,
                 _ => next(1 << 16) as u16,
             });
-            a.masks[cell] = if k % 7 == 0 { [0; 16] } else { mask };
+            a.masks[cell].0 = if k % 7 == 0 { [0; 16] } else { mask };
             let mut b = a.clone();
             let t = if k % 3 == 0 { 0 } else { next(64) as u8 };
             let frag = Fragment {
