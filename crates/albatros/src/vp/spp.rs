@@ -39,7 +39,8 @@ pub const FULL: u16 = 0xFFFF;
 /// image then depended on where the bounding cell's borders happened to lie, and
 /// descents could not start at the cells of the polygon's size
 /// ([`super::gq::CellProcessors::descend_filling`]). Two comparisons per border in
-/// hardware; here most fragments lie inside their box and skip the clip.
+/// hardware; here a test skips the clip for cells wholly inside the box (the AVX2
+/// step clips every fragment with no branch: [`box_lanes_avx2`]).
 #[inline]
 pub fn box_pixels(px: u32, py: u32, bbox: [u32; 4]) -> u16 {
     let [x0, x1, y0, y1] = bbox;
@@ -98,9 +99,9 @@ pub struct SubpixelProcessors {
     width: u32,
     height: u32,
     /// Subpixel mask memory, a `[u16; 16]` (256 bits) per 4x4 cell.
-    masks: Vec<[u16; 16]>,
+    masks: Vec<Words16>,
     /// The mask memory as a frame starts (pre-masked pixels set), for `share`.
-    cleared: Vec<[u16; 16]>,
+    cleared: Vec<Words16>,
     cleared_share: Option<Share>,
     /// The mask memory holds the cleared state (the background pass of the last
     /// frame put it back cell by cell), so the next [`Self::clear`] has nothing to do.
@@ -110,13 +111,21 @@ pub struct SubpixelProcessors {
     open_pixels: u64,
     /// The thinning patterns ([`thinning`]) of the 64 transparency codes: an array,
     /// so that a code masked to 6 bits needs no bounds check.
-    thin: Box<[[u16; 16]; 64]>,
+    thin: Box<[Words16; 64]>,
     /// The processor has what [`Self::table_code_avx2`] is compiled for
     /// ([`has_avx2`]) and no AVX-512 (whose vertex pixels [`vertex_words`] takes):
     /// detected once here, a check per fragment cost some 20 instructions of the
     /// fragment's dispatch. Private, so only the detection sets it.
     avx2: bool,
 }
+
+/// Sixteen words of a cell, a pixel's each (a cell's subpixel mask, a thinning
+/// pattern), aligned to 32 bytes: the AVX2 step reads and writes them as one
+/// register, where an access the compiler cannot prove aligned it splits in two (its
+/// tuning for x86-64 in general): 3 instructions a fragment more.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(C, align(32))]
+struct Words16([u16; 16]);
 
 /// Rounds a pixel-relative V (in [`super::edge::EdgeCoord`] units) to eighths of a
 /// pixel: `round(8 V)`, halves up.
@@ -194,8 +203,13 @@ fn line_index_lanes_sse2(v1: i64, slope: i64) -> std::arch::x86_64::__m128i {
 /// `process_avx2`'s time on default).
 #[cfg(target_arch = "x86_64")]
 macro_rules! vertex_words_avx2_body {
-    ($e:expr, $px:expr, $py:expr, $vertical:expr, $words:expr) => {{
-        let body = |e: &EdgeCode, px: u32, py: u32, vertical: bool, w: std::arch::x86_64::__m256i| {
+    ($e:expr, $px:expr, $py:expr, $vertical:expr, $words:expr, $offsets:expr) => {{
+        let body = |e: &EdgeCode,
+                    px: u32,
+                    py: u32,
+                    vertical: bool,
+                    w: std::arch::x86_64::__m256i,
+                    offsets: std::arch::x86_64::__m128i| {
             if !e.exact32 || (px | py) >= CELL_LIMIT_32 {
                 return vertex_words_far(e, px, py, vertical, w);
             }
@@ -209,7 +223,7 @@ macro_rules! vertex_words_avx2_body {
             };
             const SUB: i64 = (SNAP_ONE / 4) as i64;
             let line = &e.exact;
-            let near = vertex_near_avx2(line, px, py, vertical);
+            let near = vertex_near_avx2(offsets, vertical);
             let Some(VertexStart { near, e_cell, per_lane, per_word }) = vertex_start_at(line, px, py, vertical, near)
             else {
                 return w;
@@ -301,7 +315,7 @@ macro_rules! vertex_words_avx2_body {
             }
             w
         };
-        body($e, $px, $py, $vertical, $words)
+        body($e, $px, $py, $vertical, $words, $offsets)
     }};
 }
 
@@ -351,9 +365,9 @@ macro_rules! table_code_avx2_body {
     ($spp:expr, $frag:expr, $edges:expr) => {{
         let body = |spp: &SubpixelProcessors, frag: &Fragment, edges: &[EdgeCode]| -> std::arch::x86_64::__m256i {
             use std::arch::x86_64::{
-                _mm256_and_si256, _mm256_andnot_si256, _mm256_cmpeq_epi8, _mm256_or_si256, _mm256_permutevar8x32_epi32,
-                _mm256_set1_epi64x, _mm256_set1_epi8, _mm256_set_epi64x, _mm256_setr_epi32, _mm256_setr_epi8,
-                _mm256_setzero_si256, _mm256_shuffle_epi8, _mm256_xor_si256, _mm_extract_epi16,
+                _mm256_and_si256, _mm256_load_si256, _mm256_or_si256, _mm256_permutevar8x32_epi32, _mm256_set1_epi64x,
+                _mm256_set_epi64x, _mm256_setr_epi32, _mm256_setr_epi8, _mm256_shuffle_epi8, _mm256_xor_si256,
+                _mm_extract_epi16,
             };
             let ones = _mm256_set1_epi64x(-1);
             let (mut rows, mut columns) = (ones, ones);
@@ -374,18 +388,30 @@ macro_rules! table_code_avx2_body {
                     word(_mm_extract_epi16::<1>(index) as usize),
                     word(_mm_extract_epi16::<0>(index) as usize),
                 );
-                let flip = _mm256_cmpeq_epi8(_mm256_set1_epi8(i8::from(e.lr)), _mm256_setzero_si256());
+                // SAFETY: an entry of `FLIP` is 32 bytes aligned to 32, a register's
+                // size; `usize::from(bool)` is 0 or 1.
+                #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
+                let flip = unsafe { _mm256_load_si256(FLIP.0[usize::from(e.lr)].as_ptr().cast()) };
                 let mut w = _mm256_xor_si256(read, flip);
                 // The pixels of this cell near an endpoint of the edge, where the exact
-                // rule replaces the table.
-                if spp.vertex_exact && near_end_cell_sse2(&e.exact, frag.px, frag.py) {
-                    w = vertex_words_avx2_body!(e, frag.px, frag.py, vertical, w);
+                // rule replaces the table. The endpoints' offsets from the cell serve
+                // both the test and the vertex pixels.
+                if spp.vertex_exact {
+                    let offsets = end_offsets_sse2(&e.exact, frag.px, frag.py);
+                    if near_end_cell_at_sse41(&e.exact, frag.px, frag.py, offsets) {
+                        w = vertex_words_avx2_body!(e, frag.px, frag.py, vertical, w, offsets);
+                    }
                 }
-                // `rows &= !(!w & along)` and `columns &= w | along`, `along` all ones for
-                // a vertical edge.
-                let along = _mm256_cmpeq_epi8(_mm256_set1_epi8(e.tg as i8), _mm256_set1_epi8(Tg::Vertical as i8));
-                rows = _mm256_andnot_si256(_mm256_andnot_si256(w, along), rows);
-                columns = _mm256_and_si256(columns, _mm256_or_si256(w, along));
+                // `rows &= w | keep_rows` and `columns &= w | keep_columns`: a vertical
+                // edge keeps the columns, a horizontal one the rows.
+                let keep = &KEEP.0[usize::from(vertical)];
+                // SAFETY: `keep` is two registers' words, 64 bytes aligned to 32, the
+                // 2 x 32 bytes the aligned loads read.
+                #[allow(unsafe_code, reason = "aligned loads of arrays of a register's size")]
+                let (keep_rows, keep_columns) =
+                    unsafe { (_mm256_load_si256(keep[0].as_ptr().cast()), _mm256_load_si256(keep[1].as_ptr().cast())) };
+                rows = _mm256_and_si256(rows, _mm256_or_si256(w, keep_rows));
+                columns = _mm256_and_si256(columns, _mm256_or_si256(w, keep_columns));
             }
             // Columns to rows: set `(x, y)` from 16-bit lane `4 x + y` to `4 y + x`. In
             // each 128-bit half (columns `x` and `x + 1`) the shuffle puts lane `4 x + y`
@@ -404,8 +430,9 @@ macro_rules! table_code_avx2_body {
     }};
 }
 
-/// The pixels of `pixels` (bit `4 y + x`) as 16-bit lanes of all ones, the others 0.
-#[cfg(target_arch = "x86_64")]
+/// The pixels of `pixels` (bit `4 y + x`) as 16-bit lanes of all ones, the others 0:
+/// the reference for [`box_lanes_avx2`]'s test.
+#[cfg(all(test, target_arch = "x86_64"))]
 #[target_feature(enable = "avx2")]
 #[inline]
 fn pixel_lanes_avx2(pixels: u16) -> std::arch::x86_64::__m256i {
@@ -430,6 +457,40 @@ fn pixel_lanes_avx2(pixels: u16) -> std::arch::x86_64::__m256i {
         (1u16 << 15) as i16,
     );
     _mm256_cmpeq_epi16(_mm256_and_si256(_mm256_set1_epi16(pixels as i16), bits), bits)
+}
+
+/// [`box_pixels`] of the cell at pixel `(px, py)` as 16-bit lanes of all ones (the
+/// pixels in the box) or 0 (tested), with no branch: 55 % of default's fragments
+/// with edges meet a border of their polygon's box, so `box_pixels`' test for a cell
+/// wholly inside went either way (and its clip cost some 45 instructions where it
+/// applied). Lanes 0-3 of the 32-bit registers are the cell's pixel columns, 4-7 its
+/// rows; pixel `i` of an axis lies in `[a, b)` when `i >= a -sat p` and `i < b -sat
+/// p` (the saturating differences of `span` in `box_pixels`, as `max(a, p) - p`),
+/// unsigned compares by `max == i`. The columns' lanes packed to 16 bits and
+/// repeated make lane `4 y + x` column `x`'s; the rows' lanes, each widened to two
+/// 16-bit lanes by the dword permute, row `y`'s.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn box_lanes_avx2(px: u32, py: u32, bbox: [u32; 4]) -> std::arch::x86_64::__m256i {
+    use std::arch::x86_64::{
+        _mm256_and_si256, _mm256_andnot_si256, _mm256_cmpeq_epi32, _mm256_max_epu32, _mm256_packs_epi32,
+        _mm256_permute4x64_epi64, _mm256_permutevar8x32_epi32, _mm256_setr_epi32, _mm256_sub_epi32,
+    };
+    let [x0, x1, y0, y1] = bbox.map(|v| v as i32);
+    let (px, py) = (px as i32, py as i32);
+    let p = _mm256_setr_epi32(px, px, px, px, py, py, py, py);
+    let from = _mm256_sub_epi32(_mm256_max_epu32(_mm256_setr_epi32(x0, x0, x0, x0, y0, y0, y0, y0), p), p);
+    let to = _mm256_sub_epi32(_mm256_max_epu32(_mm256_setr_epi32(x1, x1, x1, x1, y1, y1, y1, y1), p), p);
+    let i = _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3);
+    let at_or_after = _mm256_cmpeq_epi32(_mm256_max_epu32(i, from), i);
+    let at_or_after_end = _mm256_cmpeq_epi32(_mm256_max_epu32(i, to), i);
+    let inside = _mm256_andnot_si256(at_or_after_end, at_or_after);
+    // Quadwords 0, 1, 0, 1: the low half's columns (packed twice) in both halves.
+    const LOW_HALF_TWICE: i32 = 0b01_00_01_00;
+    let columns = _mm256_permute4x64_epi64::<LOW_HALF_TWICE>(_mm256_packs_epi32(inside, inside));
+    let rows = _mm256_permutevar8x32_epi32(inside, _mm256_setr_epi32(4, 4, 5, 5, 6, 6, 7, 7));
+    _mm256_and_si256(columns, rows)
 }
 
 /// The pixels (bit `4 y + x`) whose 16-bit lane is all ones, the lanes all ones or
@@ -479,12 +540,12 @@ impl SubpixelProcessors {
             rows,
             width,
             height,
-            masks: vec![[0; 16]; stride * rows],
+            masks: vec![Words16([0; 16]); stride * rows],
             cleared: Vec::new(),
             open_pixels: 0,
             cleared_share: None,
             clean: false,
-            thin: Box::new(std::array::from_fn(|t| thinning(t as u8))),
+            thin: Box::new(std::array::from_fn(|t| Words16(thinning(t as u8)))),
             avx2: has_avx2() && !has_avx512(),
         };
         s.clear();
@@ -514,10 +575,10 @@ impl SubpixelProcessors {
                     for &cx in &changed {
                         let c = cy * self.stride + cx;
                         let cell = lines.cleared_cell(cx, cy);
-                        self.cleared[c] = cell;
+                        self.cleared[c] = Words16(cell);
                         if self.clean {
                             // The rest of the memory is in its cleared state already.
-                            self.masks[c] = cell;
+                            self.masks[c] = Words16(cell);
                         }
                     }
                 }
@@ -527,7 +588,7 @@ impl SubpixelProcessors {
             _ => {
                 let lines = self.owned_lines();
                 self.cleared = (0..self.rows * self.stride)
-                    .map(|c| lines.cleared_cell(c % self.stride, c / self.stride))
+                    .map(|c| Words16(lines.cleared_cell(c % self.stride, c / self.stride)))
                     .collect();
                 self.open_pixels = lines.open_pixels();
                 self.cleared_share = Some(self.share);
@@ -574,7 +635,7 @@ impl SubpixelProcessors {
     /// The mask memory word of the cell at `(cx, cy)`.
     #[inline]
     pub fn mask(&self, cx: usize, cy: usize) -> &[u16; 16] {
-        &self.masks[cy * self.stride + cx]
+        &self.masks[cy * self.stride + cx].0
     }
 
     /// The fragment's code: per pixel, the AND over the crossing edges of their
@@ -804,7 +865,7 @@ impl SubpixelProcessors {
 
     /// [`Self::process_plain`] of a table mode in AVX2, the same visible sets, mask
     /// memory and counts (tested): the code in a register ([`table_code_avx2_body`]),
-    /// clipped to the box by a compare of the window's bits, and the mask step on it
+    /// clipped to the box with no branch ([`box_lanes_avx2`]), and the mask step on it
     /// ([`Self::apply_avx2`]). Through memory, the code (stored as 16 `u16`, the box
     /// clip's stores of odd sizes, read back as 16-byte loads) missed the store
     /// forwarding: some 20 % of `process`'s time stood on one load; and the call
@@ -820,11 +881,8 @@ impl SubpixelProcessors {
         counters: &mut Counters,
     ) -> Visible {
         use std::arch::x86_64::_mm256_and_si256;
-        let mut code = table_code_avx2_body!(&*self, frag, edges);
-        let window = box_pixels(frag.px, frag.py, frag.bbox);
-        if window != ALL_PIXELS {
-            code = _mm256_and_si256(code, pixel_lanes_avx2(window));
-        }
+        let code = table_code_avx2_body!(&*self, frag, edges);
+        let code = _mm256_and_si256(code, box_lanes_avx2(frag.px, frag.py, frag.bbox));
         let (vis, pixels) = self.apply_avx2::<STATS>(frag.px, frag.py, code, t);
         if STATS {
             counters.spp.edge_lookups += 16 * frag.active.len() as u64;
@@ -880,22 +938,22 @@ impl SubpixelProcessors {
         t: u8,
     ) -> (Visible, u16) {
         use std::arch::x86_64::{
-            __m256i, _mm256_and_si256, _mm256_andnot_si256, _mm256_cmpeq_epi16, _mm256_loadu_si256, _mm256_or_si256,
-            _mm256_set1_epi16, _mm256_setzero_si256, _mm256_store_si256, _mm256_storeu_si256, _mm256_testc_si256,
+            __m256i, _mm256_and_si256, _mm256_andnot_si256, _mm256_cmpeq_epi16, _mm256_load_si256, _mm256_or_si256,
+            _mm256_set1_epi16, _mm256_setzero_si256, _mm256_store_si256, _mm256_testc_si256,
         };
-        let thin: *const __m256i = self.thin[usize::from(t & 63)].as_ptr().cast();
+        let thin: *const __m256i = self.thin[usize::from(t & 63)].0.as_ptr().cast();
         let cell = (py / CELL_SIDE) as usize * self.stride + (px / CELL_SIDE) as usize;
-        let mask_ptr: *mut __m256i = self.masks[cell].as_mut_ptr().cast();
-        // SAFETY: a pattern and a cell's mask are 16 `u16`, the 32 bytes each
-        // unaligned load reads (and the store writes back).
-        #[allow(unsafe_code, reason = "unaligned loads of arrays of a register's size")]
-        let (thin, mask) = unsafe { (_mm256_loadu_si256(thin), _mm256_loadu_si256(mask_ptr)) };
+        let mask_ptr: *mut __m256i = self.masks[cell].0.as_mut_ptr().cast();
+        // SAFETY: a pattern and a cell's mask are 16 `u16` aligned to 32 bytes
+        // ([`Words16`]), the 32 bytes each aligned load reads (and the store writes back).
+        #[allow(unsafe_code, reason = "aligned loads of arrays of a register's size")]
+        let (thin, mask) = unsafe { (_mm256_load_si256(thin), _mm256_load_si256(mask_ptr)) };
         let visible = _mm256_andnot_si256(mask, _mm256_and_si256(code, thin));
         let now = _mm256_or_si256(mask, visible);
         // SAFETY: as the load of `mask` above.
-        #[allow(unsafe_code, reason = "an unaligned store into an array of a register's size")]
+        #[allow(unsafe_code, reason = "an aligned store into an array of a register's size")]
         unsafe {
-            _mm256_storeu_si256(mask_ptr, now);
+            _mm256_store_si256(mask_ptr, now);
         }
         let zero = _mm256_setzero_si256();
         let none = _mm256_cmpeq_epi16(visible, zero);
@@ -922,9 +980,9 @@ impl SubpixelProcessors {
         // with no store into the memories between the loads, the loop vectorises
         // (otherwise the mask's stores might alias the pattern: 130 instructions a
         // cell rather than about 30).
-        let thin = self.thin[usize::from(t & 63)];
+        let thin = self.thin[usize::from(t & 63)].0;
         let cell = (py / CELL_SIDE) as usize * self.stride + (px / CELL_SIDE) as usize;
-        let mask = self.masks[cell];
+        let mask = self.masks[cell].0;
         let mut now = [0u16; 16];
         let mut sets = [0u16; 16];
         // Counting only: pixels with a visible subpixel. (The subpixels set are
@@ -939,7 +997,7 @@ impl SubpixelProcessors {
                 pixels |= u16::from(visible != 0) << i;
             }
         }
-        self.masks[cell] = now;
+        self.masks[cell] = Words16(now);
         // First writes (pixels empty before with a visible subpixel now) and cover
         // (every word full) by byte masks: some 10 instructions fewer a fragment than
         // the compiler's reductions of the loop's bits.
@@ -954,7 +1012,7 @@ impl SubpixelProcessors {
     /// set full).
     pub fn background(&mut self, cx: usize, cy: usize) -> Visible {
         let cell = cy * self.stride + cx;
-        let mask = &mut self.masks[cell];
+        let mask = &mut self.masks[cell].0;
         let mut sets = [0u16; 16];
         let mut first = 0u16;
         for i in 0..16 {
@@ -963,7 +1021,7 @@ impl SubpixelProcessors {
                 first |= 1 << i;
             }
         }
-        *mask = self.cleared[cell];
+        *mask = self.cleared[cell].0;
         Visible { px: cx as u32 * CELL_SIDE, py: cy as u32 * CELL_SIDE, sets, first, covered: true }
     }
 
@@ -974,7 +1032,7 @@ impl SubpixelProcessors {
     pub fn background_covered(&mut self, cy: usize, columns: std::ops::Range<usize>) {
         let row = cy * self.stride;
         let cells = row + columns.start..row + columns.end;
-        debug_assert!(self.masks[cells.clone()].iter().all(|m| *m == [FULL; 16]));
+        debug_assert!(self.masks[cells.clone()].iter().all(|m| m.0 == [FULL; 16]));
         self.masks[cells.clone()].copy_from_slice(&self.cleared[cells]);
     }
 }
@@ -1519,6 +1577,42 @@ fn vertex_start_at(line: &ExactLine, px: u32, py: u32, vertical: bool, near: u16
     Some(VertexStart { near, e_cell, per_lane, per_word })
 }
 
+/// The endpoints' coordinates less the cell's first widened border, `x0 = px ONE -
+/// MARGIN` and `y0` alike, as 32-bit lanes `ax, ay, bx, by` (wrapping): what
+/// [`near_end_cell_at_sse41`] and [`vertex_near_avx2`] compare, made once an edge.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "sse2")]
+#[inline]
+fn end_offsets_sse2(line: &ExactLine, px: u32, py: u32) -> std::arch::x86_64::__m128i {
+    use std::arch::x86_64::{_mm_set_epi32, _mm_sub_epi32};
+    // Wrapping: far cells (beyond `CELL_LIMIT_32`) take other paths, which do not
+    // read these lanes.
+    let p = |p: u32| (p as i32).wrapping_mul(SNAP_ONE).wrapping_sub(VERTEX_MARGIN);
+    let (x0, y0) = (p(px), p(py));
+    let [(ax, ay), (bx, by)] = line.ends;
+    _mm_sub_epi32(_mm_set_epi32(by, bx, ay, ax), _mm_set_epi32(y0, x0, y0, x0))
+}
+
+/// [`near_end_cell`] from the endpoints' offsets `t` ([`end_offsets_sse2`]; tested):
+/// within `0..=SPAN` of the widened cell as one unsigned compare (`min(t, SPAN) ==
+/// t`, the reasoning of [`near_end_cell_sse2`]), both coordinates of an endpoint as
+/// one 64-bit lane of all ones, tested by `ptest`: 7 instructions against 13 for
+/// [`near_end_cell_sse2`]'s biased compare and byte mask. Cells beyond the 32-bit
+/// numbers go to [`near_end_cell_far`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "sse4.1")]
+#[inline]
+fn near_end_cell_at_sse41(line: &ExactLine, px: u32, py: u32, t: std::arch::x86_64::__m128i) -> bool {
+    use std::arch::x86_64::{_mm_cmpeq_epi32, _mm_cmpeq_epi64, _mm_min_epu32, _mm_set1_epi32, _mm_testz_si128};
+    if (px | py) >= CELL_LIMIT_32 {
+        return near_end_cell_far(line, px, py);
+    }
+    const SPAN: i32 = CELL_SIDE as i32 * SNAP_ONE + 2 * VERTEX_MARGIN;
+    let within = _mm_cmpeq_epi32(_mm_min_epu32(t, _mm_set1_epi32(SPAN)), t);
+    let both = _mm_cmpeq_epi64(within, _mm_set1_epi32(-1));
+    _mm_testz_si128(both, both) == 0
+}
+
 /// The vertex pixels of [`vertex_start`] in AVX2 (tested), for cells and endpoints
 /// within [`VertexWindow::fits`]: with `t` a coordinate less the cell's first widened
 /// border, pixel `d` holds it when `0 <= t - d ONE <= ONE + 2 MARGIN`, one unsigned
@@ -1526,36 +1620,64 @@ fn vertex_start_at(line: &ExactLine, px: u32, py: u32, vertical: bool, near: u16
 /// there). Each endpoint's coordinate along the words and across them, four `d` a
 /// coordinate, are one register; its lanes' sign mask gives the endpoint's lane bits
 /// (low nibble) and word bits (high nibble). About 30 instructions against some 45
-/// for the window table's way.
+/// for the window table's way. It takes the endpoints' offsets `t`
+/// ([`end_offsets_sse2`]), made once for the test of [`near_end_cell_at_sse41`] too.
+/// Each endpoint's registers hold its x then its y (no swap by the TG), and its
+/// eight bits are turned into pixels by [`NEAR_PIXELS`]: some 16 instructions
+/// fewer a call than the swap and the products that spread the bits.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,bmi1")]
 #[inline]
-fn vertex_near_avx2(line: &ExactLine, px: u32, py: u32, vertical: bool) -> u16 {
+fn vertex_near_avx2(t: std::arch::x86_64::__m128i, vertical: bool) -> u16 {
     use std::arch::x86_64::{
         _mm256_castsi128_si256, _mm256_castsi256_ps, _mm256_cmpeq_epi32, _mm256_min_epu32, _mm256_movemask_ps,
-        _mm256_permutevar8x32_epi32, _mm256_set1_epi32, _mm256_setr_epi32, _mm256_sub_epi32, _mm256_xor_si256,
-        _mm_set_epi32, _mm_sub_epi32,
+        _mm256_permutevar8x32_epi32, _mm256_set1_epi32, _mm256_setr_epi32, _mm256_sub_epi32,
     };
     const ONE: i32 = SNAP_ONE;
     const SPAN: i32 = SNAP_ONE + 2 * VERTEX_MARGIN;
-    let (x0, y0) = (px as i32 * SNAP_ONE - VERTEX_MARGIN, py as i32 * SNAP_ONE - VERTEX_MARGIN);
-    let [(ax, ay), (bx, by)] = line.ends;
-    let t = _mm256_castsi128_si256(_mm_sub_epi32(_mm_set_epi32(by, bx, ay, ax), _mm_set_epi32(y0, x0, y0, x0)));
-    // Lanes 0-3 the coordinate along the lanes (x for a vertical edge, whose words are
-    // pixel rows), 4-7 the one along the words: `t` holds x, y, x, y.
-    let swap = _mm256_set1_epi32(i32::from(!vertical));
-    let first = _mm256_xor_si256(_mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1), swap);
-    let second = _mm256_xor_si256(_mm256_setr_epi32(2, 2, 2, 2, 3, 3, 3, 3), swap);
+    let t = _mm256_castsi128_si256(t);
+    // Lanes 0-3 an endpoint's x, 4-7 its y: `t` holds x, y, x, y.
+    let first = _mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1);
+    let second = _mm256_setr_epi32(2, 2, 2, 2, 3, 3, 3, 3);
     let steps = _mm256_setr_epi32(0, ONE, 2 * ONE, 3 * ONE, 0, ONE, 2 * ONE, 3 * ONE);
     let bits = |index| {
         let d = _mm256_sub_epi32(_mm256_permutevar8x32_epi32(t, index), steps);
         let within = _mm256_cmpeq_epi32(_mm256_min_epu32(d, _mm256_set1_epi32(SPAN)), d);
-        _mm256_movemask_ps(_mm256_castsi256_ps(within)) as u32
+        _mm256_movemask_ps(_mm256_castsi256_ps(within)) as usize & (NEAR_BITS - 1)
     };
-    // Word bit `w` to nibble `w` (bit `4 w`), times the four lane bits.
-    let pixels = |m: u32| (((m >> 4) * 0x249) & 0x1111) * (m & 0xF);
-    (pixels(bits(first)) | pixels(bits(second))) as u16
+    let pixels = &NEAR_PIXELS[usize::from(vertical)];
+    pixels[bits(first)] | pixels[bits(second)]
 }
+
+/// The values of an endpoint's eight within-bits in [`vertex_near_avx2`].
+#[cfg(target_arch = "x86_64")]
+const NEAR_BITS: usize = 1 << 8;
+
+/// [`vertex_near_avx2`]'s pixels of one endpoint from its within-bits `m` (bit `x`:
+/// pixel column `x` holds the endpoint's x; bit `4 + y`: row `y` its y): the pixels
+/// `(x, y)` of both, in the words' order ([`VertexStart::near`]), bit `4 x + y` for a
+/// horizontal edge (entry 0, its words pixel columns), `4 y + x` for a vertical one.
+#[cfg(target_arch = "x86_64")]
+static NEAR_PIXELS: [[u16; NEAR_BITS]; 2] = {
+    let mut table = [[0u16; NEAR_BITS]; 2];
+    let mut m = 0;
+    while m < NEAR_BITS {
+        let mut x = 0;
+        while x < 4 {
+            let mut y = 0;
+            while y < 4 {
+                if m >> x & 1 == 1 && m >> (4 + y) & 1 == 1 {
+                    table[0][m] |= 1 << (4 * x + y);
+                    table[1][m] |= 1 << (4 * y + x);
+                }
+                y += 1;
+            }
+            x += 1;
+        }
+        m += 1;
+    }
+    table
+};
 
 /// [`vertex_words_sse41`] in AVX2 for processors without AVX-512 (Zen 3): the same
 /// sets (tested), about 200 instructions a call against 256 for the SSE4.1 path
@@ -1589,7 +1711,7 @@ fn vertex_words_avx2(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64
     // SAFETY: `words` is 32 bytes aligned to 32, a register's size.
     #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
     let w = unsafe { _mm256_load_si256(words.0.as_ptr().cast()) };
-    let w = vertex_words_avx2_body!(e, px, py, vertical, w);
+    let w = vertex_words_avx2_body!(e, px, py, vertical, w, end_offsets_sse2(&e.exact, px, py));
     let mut out = Aligned32([0u64; 4]);
     // SAFETY: `out` is 32 bytes aligned to 32, a register's size.
     #[allow(unsafe_code, reason = "an aligned store into an array of a register's size")]
@@ -1598,6 +1720,21 @@ fn vertex_words_avx2(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64
     }
     out.0
 }
+
+/// [`table_code_avx2_body`]'s flip of an edge's words by its LR (entry `usize::from(lr)`):
+/// all ones for LR = 0 (the complements), none for LR = 1. A load where the mask
+/// had been made from the LR byte (a broadcast and a compare: 2 instructions an
+/// edge more).
+#[cfg(target_arch = "x86_64")]
+static FLIP: Aligned32<[[u64; 4]; 2]> = Aligned32([[u64::MAX; 4], [0; 4]]);
+
+/// [`table_code_avx2_body`]'s words that keep the rows and the columns (entry
+/// `usize::from(vertical)`, then rows, columns): a horizontal edge's words AND into the
+/// columns only, a vertical one's into the rows (`rows &= w | keep_rows`). Loads where
+/// the `along` mask had been made from the TG byte and applied with two `andn`: 3
+/// instructions an edge more.
+#[cfg(target_arch = "x86_64")]
+static KEEP: Aligned32<[[[u64; 4]; 2]; 2]> = Aligned32([[[u64::MAX; 4], [0; 4]], [[0; 4], [u64::MAX; 4]]]);
 
 /// [`vertex_words_avx2`]'s blend masks: entry `i` selects the 16-bit lane `i`.
 #[cfg(target_arch = "x86_64")]
@@ -1822,6 +1959,53 @@ mod tests {
         }
     }
 
+    /// [`box_lanes_avx2`] is [`pixel_lanes_avx2`] of [`box_pixels`]: boxes around,
+    /// across and inside cells, empty, reversed and unbounded, near the origin and near
+    /// the end of `u32`.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn box_lanes_avx2_are_box_pixels() {
+        if !has_avx2() {
+            return;
+        }
+        let mut next = xorshift(0x5EED_B0C5_0000_0011);
+        // The last cells before `box_pixels`' `px + CELL_SIDE` would overflow.
+        let far = u32::MAX - CELL_SIDE;
+        for k in 0..200_000 {
+            let (px, py) = match k % 4 {
+                0 => (4 * next(8) as u32, 4 * next(8) as u32),
+                1 => (far - 4 * next(4) as u32, 4 * next(300) as u32),
+                _ => (4 * next(500) as u32, 4 * next(300) as u32),
+            };
+            let mut side = |p: u32| -> [u32; 2] {
+                match next(6) {
+                    0 => [0, u32::MAX],
+                    1 => [next(1 << 20) as u32, next(1 << 20) as u32],
+                    2 => [u32::MAX - next(8) as u32, u32::MAX - next(8) as u32],
+                    _ => {
+                        let lo = (i64::from(p) + next(13) - 6).clamp(0, i64::from(u32::MAX)) as u32;
+                        [lo, lo.saturating_add(next(12) as u32)]
+                    }
+                }
+            };
+            let ([x0, x1], [y0, y1]) = (side(px), side(py));
+            let bbox = [x0, x1, y0, y1];
+            // SAFETY: both functions only need AVX2, which `has_avx2` found.
+            #[allow(unsafe_code, reason = "functions compiled for AVX2, after detection")]
+            let (got, want) = unsafe {
+                let mut got = [0u16; 16];
+                let mut want = [0u16; 16];
+                std::arch::x86_64::_mm256_storeu_si256(got.as_mut_ptr().cast(), box_lanes_avx2(px, py, bbox));
+                std::arch::x86_64::_mm256_storeu_si256(
+                    want.as_mut_ptr().cast(),
+                    pixel_lanes_avx2(box_pixels(px, py, bbox)),
+                );
+                (got, want)
+            };
+            assert_eq!(got, want, "case {k}: cell ({px}, {py}), box {bbox:?}");
+        }
+    }
+
     /// Marsaglia's xorshift64: `next(n)` is a deterministic number in `0..n`.
     /// Up to `n` random edges (fewer where two points coincide) of a screen of
     /// `root_side` pixels, each with an end in or around the 4 x 4 cell at `(px, py)`
@@ -2007,7 +2191,7 @@ mod tests {
                 #[allow(unsafe_code, reason = "functions compiled for AVX2 and SSE4.1, after detection")]
                 let (got, table) = unsafe {
                     (
-                        vertex_near_avx2(&line, px, py, vertical),
+                        vertex_near_avx2(end_offsets_sse2(&line, px, py), vertical),
                         vertex_start(&line, px, py, vertical).map_or(0, |s| s.near),
                     )
                 };
@@ -2049,6 +2233,12 @@ mod tests {
             #[allow(unsafe_code, reason = "a function compiled for SSE2, on x86-64")]
             let got = unsafe { near_end_cell_sse2(&line, px, py) };
             assert_eq!(got, near_end_cell(&line, px, py), "{ends:?} ({px}, {py})");
+            if std::is_x86_feature_detected!("sse4.1") {
+                // SAFETY: the processor was just found to have SSE4.1 (and SSE2).
+                #[allow(unsafe_code, reason = "functions compiled for SSE4.1, after detection")]
+                let got = unsafe { near_end_cell_at_sse41(&line, px, py, end_offsets_sse2(&line, px, py)) };
+                assert_eq!(got, near_end_cell(&line, px, py), "{ends:?} ({px}, {py}), offsets");
+            }
         }
     }
 
@@ -2448,7 +2638,7 @@ mod tests {
                 _ => next(1 << 16) as u16,
             });
             let mask = [[0; 16], [FULL; 16], mask][(next(8) as usize).min(2)];
-            (a.masks[cell], b.masks[cell]) = (mask, mask);
+            (a.masks[cell].0, b.masks[cell].0) = (mask, mask);
             let t = if k % 3 == 0 { 0 } else { next(64) as u8 };
             let (mut ca, mut cb) = (Counters::new(level), Counters::new(level));
             let (got, want) = if k % 4 == 0 {
@@ -2494,7 +2684,7 @@ mod tests {
                 1 => FULL,
                 _ => next(1 << 16) as u16,
             });
-            a.masks[cell] = if k % 7 == 0 { [0; 16] } else { mask };
+            a.masks[cell].0 = if k % 7 == 0 { [0; 16] } else { mask };
             let mut b = a.clone();
             let t = if k % 3 == 0 { 0 } else { next(64) as u8 };
             let frag = Fragment {
