@@ -326,9 +326,12 @@ pub(crate) struct MapAvx2<'a> {
     beyond: __m256,
     /// `n`.
     n: __m256i,
-    /// `4^(n+1)` and `2^(n+1)`: [`pair_start`]'s terms.
-    n4: __m256i,
-    n2: __m256i,
+    /// Where each level `k` starts in the pair layout ([`pair_start`]), levels
+    /// `0..8` in the first register's lanes and `8..16` in the second's (levels
+    /// above `n` as `n`): one permute of each and a select per look-up, where the
+    /// start had been found from the side per lane (two dependent `vpmulld` on the
+    /// gather's address, nine instructions).
+    starts: [__m256i; 2],
     /// The last 4-byte read's start in the pair layout.
     last: __m256i,
 }
@@ -339,6 +342,8 @@ impl TextureMap {
     #[target_feature(enable = "avx2")]
     #[inline]
     pub(crate) fn avx2(&self) -> MapAvx2<'_> {
+        // Every level's start in the two registers of [`MapAvx2::starts`].
+        const { assert!(MAX_LOG2_SIDE < 2 * 8) };
         let n = self.log2_side;
         MapAvx2 {
             map: self,
@@ -347,8 +352,10 @@ impl TextureMap {
             top: _mm256_set1_ps(n as f32),
             beyond: _mm256_set1_ps((2u32 << n) as f32),
             n: _mm256_set1_epi32(n as i32),
-            n4: _mm256_set1_epi32((4u32 << (2 * n)) as i32),
-            n2: _mm256_set1_epi32((2u32 << n) as i32),
+            starts: [0, 8].map(|first| {
+                let start = |l: i32| pair_start(n, 1 << (n - (first + l as u32).min(n))) as i32;
+                _mm256_setr_epi32(start(0), start(1), start(2), start(3), start(4), start(5), start(6), start(7))
+            }),
             last: _mm256_set1_epi32((self.pairs.len() - 4) as i32),
         }
     }
@@ -468,12 +475,11 @@ impl MapAvx2<'_> {
         let (j0, kv) = (small_int_avx2(ft), _mm256_sub_ps(t, ft));
         let mask = _mm256_sub_epi32(side, _mm256_set1_epi32(1));
         let (c0, r0) = (_mm256_and_si256(i0, mask), _mm256_and_si256(j0, mask));
-        // [`pair_start`]: `2 (4^(n+1) - 4 s^2) / 3`, the exact division as the
-        // product by the inverse of 3 modulo 2^32, plus `2 (2^(n+1) - 2 s)`.
-        let squares = _mm256_sub_epi32(self.n4, _mm256_slli_epi32::<2>(_mm256_mullo_epi32(side, side)));
-        let start = _mm256_add_epi32(
-            _mm256_slli_epi32::<1>(_mm256_mullo_epi32(squares, _mm256_set1_epi32(0xAAAA_AAABu32 as i32))),
-            _mm256_slli_epi32::<1>(_mm256_sub_epi32(self.n2, _mm256_slli_epi32::<1>(side))),
+        // [`pair_start`] of level `k` from the map's table (`k` is at most `n`).
+        let start = _mm256_blendv_epi8(
+            _mm256_permutevar8x32_epi32(self.starts[0], k),
+            _mm256_permutevar8x32_epi32(self.starts[1], k),
+            _mm256_cmpgt_epi32(k, _mm256_set1_epi32(7)),
         );
         // Pair `(r0, c0)`: `start + 2 (r0 (s + 1) + c0)`.
         let pair = _mm256_add_epi32(_mm256_mullo_epi32(r0, _mm256_add_epi32(side, _mm256_set1_epi32(1))), c0);
