@@ -417,7 +417,7 @@ struct PolyAvx2<'a> {
     c: __m128,
     /// `a dx` and `b dy` of the four functions (in that order) in the lanes of each
     /// half of the cell (pixels `0..8`, `8..16`): P2 fig. 2's products, the same
-    /// in every cell.
+    /// in every cell (zeros for `u`, `v` with no texture drawn).
     a_dx: [[__m256; 4]; 2],
     b_dy: [[__m256; 4]; 2],
     /// With a texture whose map exists, its set-up ([`TextureAvx2`]).
@@ -464,10 +464,19 @@ impl<'a> PolyAvx2<'a> {
     #[target_feature(enable = "avx2")]
     #[inline]
     fn new(cc: &ColorComputers<'a>, poly: &'a FramePolygon) -> Self {
-        let drawn = cc.set_up(poly).and_then(|t| Some((t, cc.textures.get(t.map)?)));
+        // (A match, not `and_then` with a closure: that stayed a call.)
+        let drawn = match cc.set_up(poly) {
+            Some(t) => cc.textures.get(t.map).map(|map| (t, map)),
+            None => None,
+        };
         let none = FracLin::default();
-        let (u, v) = drawn.map_or((none, none), |(t, _)| (t.u, t.v));
+        let (u, v) = match drawn {
+            Some((t, _)) => (t.u, t.v),
+            None => (none, none),
+        };
         let f = [poly.inv_z, poly.intensity, u, v];
+        // The functions stepped: `u`, `v` only with a texture drawn.
+        let stepped = if drawn.is_some() { 4 } else { 2 };
         let (mut a_dx, mut b_dy) = ([[_mm256_setzero_ps(); 4]; 2], [[_mm256_setzero_ps(); 4]; 2]);
         for half in 0..2 {
             let lanes = AVX2_LANES * half..AVX2_LANES * (half + 1);
@@ -476,7 +485,7 @@ impl<'a> PolyAvx2<'a> {
             // SAFETY: `dx` and `dy` are 8 `f32`, the 32 bytes each load reads.
             #[allow(unsafe_code, reason = "unaligned loads of arrays of a register's size")]
             let (dx, dy) = unsafe { (_mm256_loadu_ps(dx.as_ptr()), _mm256_loadu_ps(dy.as_ptr())) };
-            for i in 0..4 {
+            for i in 0..stepped {
                 a_dx[half][i] = _mm256_mul_ps(_mm256_set1_ps(f[i].a), dx);
                 b_dy[half][i] = _mm256_mul_ps(_mm256_set1_ps(f[i].b), dy);
             }
