@@ -41,6 +41,14 @@
 //! AVX2 (and not AVX-512) and the VB's 8-bit code, the VB's F1 of the cell runs at
 //! the end of the AVX2 copy's own function ([`ColorComputers::shade_accumulate`]):
 //! no call, dispatch or set-up of F1 per cell.
+//!
+//! The AVX2 copy sets a polygon up once ([`PolyAvx2`], kept in `ColorComputers`
+//! until a cell of another polygon comes: the VP colours a polygon's cells one
+//! after another): its texture and map, the functions' coefficients side by side
+//! (the four at Q in one evaluation), the stepping's products `A dx`, `B dy` of
+//! each half-cell, the colours and the map's constants in registers' lanes. A cell
+//! then starts from Q (default: ~1000 instructions a shaded cell before, colour +
+//! VB 143.3 → 127.5 M).
 
 #[cfg(target_arch = "x86_64")]
 use std::arch::x86_64::*;
@@ -49,6 +57,8 @@ use glam::Vec3;
 
 use super::spp::Visible;
 use super::tac::TacRom;
+#[cfg(target_arch = "x86_64")]
+use super::texture::MapAvx2;
 use super::texture::{TextureMap, TextureMaps, LANES};
 #[cfg(target_arch = "x86_64")]
 use super::vb::F1Avx2;
@@ -132,6 +142,10 @@ pub struct ColorComputers<'a> {
     pub textures: &'a TextureMaps,
     /// The frame's texture set-ups ([`FrameList::textures`]).
     pub set_ups: &'a [PolyTexture],
+    /// The AVX2 copy's set-up of the last polygon it coloured ([`PolyAvx2`]), made
+    /// again when a cell of another polygon comes.
+    #[cfg(target_arch = "x86_64")]
+    prepared: Option<PolyAvx2<'a>>,
 }
 
 impl<'a> ColorComputers<'a> {
@@ -144,7 +158,61 @@ impl<'a> ColorComputers<'a> {
             footprint_scale: FOOTPRINT_FACTOR * frame.pixel_angle,
             textures,
             set_ups: &frame.textures,
+            #[cfg(target_arch = "x86_64")]
+            prepared: None,
         }
+    }
+
+    /// The registers with the given values (and no polygon set up).
+    #[cfg(test)]
+    fn with(
+        fog_color: Vec3,
+        inv_visibility: f32,
+        footprint_scale: f32,
+        textures: &'a TextureMaps,
+        set_ups: &'a [PolyTexture],
+    ) -> Self {
+        Self {
+            fog_color,
+            inv_visibility,
+            footprint_scale,
+            textures,
+            set_ups,
+            #[cfg(target_arch = "x86_64")]
+            prepared: None,
+        }
+    }
+
+    /// The AVX2 copy's set-up of `poly` ([`PolyAvx2`]): the one kept if it is of
+    /// `poly` (known by its address: the frame list is borrowed for `'a`, so a
+    /// polygon at the same address is the same polygon), else made now. The VP
+    /// colours the cells of a polygon one after another, so it is made about once a
+    /// polygon. Inlined into the caller's loop (the test needs no AVX2; as a
+    /// function of the AVX2 copy it stayed a call per cell, ~10 instructions).
+    ///
+    /// # Safety
+    ///
+    /// The processor must have AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    #[allow(unsafe_code, reason = "a call of a function compiled for AVX2, whose condition the caller keeps")]
+    unsafe fn prepared_avx2(&mut self, poly: &'a FramePolygon) -> &PolyAvx2<'a> {
+        if !self.prepared.as_ref().is_some_and(|p| std::ptr::eq(p.poly, poly)) {
+            // SAFETY: the processor has AVX2 (this function's condition).
+            unsafe { self.prepare_avx2(poly) };
+        }
+        match &self.prepared {
+            Some(p) => p,
+            None => unreachable!("set up just above"),
+        }
+    }
+
+    /// [`Self::prepared_avx2`]'s set-up, out of line (once a polygon).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline(never)]
+    fn prepare_avx2(&mut self, poly: &'a FramePolygon) {
+        self.prepared = Some(PolyAvx2::new(self, poly));
     }
 
     /// The texture set-up of `poly` ([`FrameList::texture_of`]).
@@ -163,8 +231,8 @@ impl<'a> ColorComputers<'a> {
     /// as one computed alone would (the stepping `Q + A dx + B dy`, the reciprocal,
     /// the products), so the colours are bit for bit those of a pixel-by-pixel loop.
     pub fn shade<const STATS: bool>(
-        &self,
-        poly: &FramePolygon,
+        &mut self,
+        poly: &'a FramePolygon,
         vis: &Visible,
         out: &mut CellColors,
         counters: &mut Counters,
@@ -178,15 +246,15 @@ impl<'a> ColorComputers<'a> {
 
     /// [`Self::shade`], then the VB's F1 of the cell's colours
     /// ([`VideoBuffer::accumulate`]). With AVX2 (not AVX-512) and the VB's 8-bit code,
-    /// both in one function ([`Self::shade_avx2`] with its `f1`): no call, dispatch or set-up of
+    /// both in one function ([`PolyAvx2::shade_avx2`] with its `f1`): no call, dispatch or set-up of
     /// F1 per cell. The same colours and words. Inlined into its caller, the VP's
     /// loop over cells: its own call had cost ~46 instructions a cell (saved
     /// registers, the features found again; default colour + VB 148.3 → 145.1 M,
     /// terrain 226.5 → 220.4 M).
     #[inline(always)]
     pub fn shade_accumulate<const STATS: bool>(
-        &self,
-        poly: &FramePolygon,
+        &mut self,
+        poly: &'a FramePolygon,
         vis: &Visible,
         out: &mut CellColors,
         counters: &mut Counters,
@@ -195,11 +263,11 @@ impl<'a> ColorComputers<'a> {
         #[cfg(target_arch = "x86_64")]
         if !std::is_x86_feature_detected!("avx512f") {
             if let Some(mut f1) = vb.f1_avx2() {
-                // SAFETY: `shade_f1_avx2` only needs AVX2, which the processor has
-                // (`f1_avx2` is `Some` only then).
-                #[allow(unsafe_code, reason = "the one call of a function compiled for AVX2, after detection")]
+                // SAFETY: `prepared_avx2` and `shade_avx2` only need AVX2, which the
+                // processor has (`f1_avx2` is `Some` only then).
+                #[allow(unsafe_code, reason = "calls of functions compiled for AVX2, after detection")]
                 unsafe {
-                    self.shade_avx2(poly, vis, out, Some(&mut f1))
+                    self.prepared_avx2(poly).shade_avx2(vis, out, Some(&mut f1))
                 };
                 if STATS {
                     let visible = crate::model::stats::visible_pixels(&vis.sets);
@@ -220,7 +288,7 @@ impl<'a> ColorComputers<'a> {
 
     /// [`Self::shade`]'s colours by the best copy the processor runs. (Not generic
     /// over the counting: one copy of each, the groups inlined into it.)
-    fn shade_cell(&self, poly: &FramePolygon, vis: &Visible, out: &mut CellColors) {
+    fn shade_cell(&mut self, poly: &'a FramePolygon, vis: &Visible, out: &mut CellColors) {
         #[cfg(target_arch = "x86_64")]
         if std::is_x86_feature_detected!("avx512f") {
             // SAFETY: `shade_avx512` only needs AVX-512F, which the processor was
@@ -232,57 +300,14 @@ impl<'a> ColorComputers<'a> {
         }
         #[cfg(target_arch = "x86_64")]
         if std::is_x86_feature_detected!("avx2") {
-            // SAFETY: `shade_avx2` only needs AVX2, which the processor was just
-            // found to have.
-            #[allow(unsafe_code, reason = "the one call of a function compiled for AVX2, after detection")]
+            // SAFETY: `prepared_avx2` and `shade_avx2` only need AVX2, which the
+            // processor was just found to have.
+            #[allow(unsafe_code, reason = "calls of functions compiled for AVX2, after detection")]
             unsafe {
-                return self.shade_avx2(poly, vis, out, None);
+                return self.prepared_avx2(poly).shade_avx2(vis, out, None);
             }
         }
         self.shade_scalar(poly, vis, out)
-    }
-
-    /// [`Self::shade`] in explicit AVX2: the cell's halves (two rows, [`AVX2_LANES`]
-    /// pixels, one 256-bit register) with a visible pixel; when both have one,
-    /// the two side by side ([`CellShader::cell_avx2`]), else the one alone
-    /// ([`CellShader::group_avx2`]). The same operations on the same values as
-    /// [`Self::shade_lanes`] (Rust neither fuses nor reorders float operations),
-    /// so the same bits.
-    ///
-    /// No packing of a cell's visible pixels into fewer groups (as the portable
-    /// copy does): on Zen 3 the two halves side by side cost hardly more than one
-    /// (their chains of dependent steps overlap), and a packed group costs its
-    /// lanes' scattered stores: terrain's colour computers 3 % faster without it,
-    /// default's the same.
-    ///
-    /// With `f1`, the VB's F1 of the cell follows in the same function
-    /// ([`Self::shade_accumulate`]).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn shade_avx2(&self, poly: &FramePolygon, vis: &Visible, out: &mut CellColors, f1: Option<&mut F1Avx2>) {
-        const N: usize = AVX2_LANES;
-        let visible = visible_avx2(&vis.sets);
-        if visible == 0 {
-            return;
-        }
-        let cell = CellShader::new(self, poly, vis);
-        if visible & 0xFF != 0 && visible >> N != 0 {
-            for (half, c) in cell.cell_avx2().iter().enumerate() {
-                for (out, c) in out.rgb.iter_mut().zip(c) {
-                    store_lanes(*c, (&mut out[N * half..N * (half + 1)]).try_into().expect("8 lanes"));
-                }
-            }
-        } else {
-            let half = usize::from(visible & 0xFF == 0);
-            let first = (N * half) as i32;
-            let pixel = _mm256_add_epi32(_mm256_set1_epi32(first), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
-            for (out, c) in out.rgb.iter_mut().zip(cell.group_avx2(pixel)) {
-                store_lanes(c, (&mut out[N * half..N * (half + 1)]).try_into().expect("8 lanes"));
-            }
-        }
-        if let Some(f1) = f1 {
-            f1.accumulate(vis, out);
-        }
     }
 
     /// [`Self::shade`] in explicit AVX-512: the whole cell as one group of 16
@@ -373,7 +398,56 @@ impl<'a> ColorComputers<'a> {
 #[cfg(target_arch = "x86_64")]
 const AVX2_LANES: usize = 8;
 
-/// [`CellShader::front_avx2`]'s values of eight pixels.
+/// The AVX2 colour computers' set-up of one polygon: what every cell of it shares,
+/// in registers' lanes, so that a cell takes it from memory as operands
+/// ([`ColorComputers::prepared_avx2`] makes it once per polygon). A cell had
+/// found all this again (~140 instructions a cell on default: the texture's set-up
+/// and map, the functions' coefficients broadcast and shuffled, the stepping's
+/// products `A dx`, `B dy` of each half, the colours broadcast, the map's side and
+/// clamps).
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy, Debug)]
+struct PolyAvx2<'a> {
+    /// The polygon.
+    poly: &'a FramePolygon,
+    /// `a`, `b`, `c` of `1/Z`, intensity, `u` and `v`, in lanes 0 to 3 (`u`, `v`
+    /// zero with no texture drawn): the four at Q in one evaluation.
+    a: __m128,
+    b: __m128,
+    c: __m128,
+    /// `a dx` and `b dy` of the four functions (in that order) in the lanes of each
+    /// half of the cell (pixels `0..8`, `8..16`): P2 fig. 2's products, the same
+    /// in every cell (zeros for `u`, `v` with no texture drawn).
+    a_dx: [[__m256; 4]; 2],
+    b_dy: [[__m256; 4]; 2],
+    /// With a texture whose map exists, its set-up ([`TextureAvx2`]).
+    texture: Option<TextureAvx2<'a>>,
+    /// The flat colour (with no texture drawn).
+    color: [__m256; 3],
+    /// `C_fog`.
+    fog: [__m256; 3],
+    /// `1 / Z0`, and whether it is not zero (fog).
+    inv_visibility: __m256,
+    fogged: bool,
+    /// The TAC's ROMs.
+    rom: &'static TacRom,
+}
+
+/// [`PolyAvx2`]'s texture: the map's constants and the face's.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy, Debug)]
+struct TextureAvx2<'a> {
+    /// The map ([`MapAvx2`]).
+    map: MapAvx2<'a>,
+    /// `2 delta` and `PAR`: the footprint's factors.
+    footprint_scale: __m256,
+    par: __m256,
+    /// `C1`, `C2`.
+    color1: [__m256; 3],
+    color2: [__m256; 3],
+}
+
+/// [`PolyAvx2::front`]'s values of eight pixels.
 #[cfg(target_arch = "x86_64")]
 struct Front {
     /// `Z`.
@@ -382,6 +456,210 @@ struct Front {
     intensity: __m256,
     /// With a texture: `u`, `v`, the footprint.
     texture: Option<(__m256, __m256, __m256)>,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl<'a> PolyAvx2<'a> {
+    /// The set-up of `poly` under `cc`'s registers.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn new(cc: &ColorComputers<'a>, poly: &'a FramePolygon) -> Self {
+        // (A match, not `and_then` with a closure: that stayed a call.)
+        let drawn = match cc.set_up(poly) {
+            Some(t) => cc.textures.get(t.map).map(|map| (t, map)),
+            None => None,
+        };
+        let none = FracLin::default();
+        let (u, v) = match drawn {
+            Some((t, _)) => (t.u, t.v),
+            None => (none, none),
+        };
+        let f = [poly.inv_z, poly.intensity, u, v];
+        // The functions stepped: `u`, `v` only with a texture drawn.
+        let stepped = if drawn.is_some() { 4 } else { 2 };
+        let (mut a_dx, mut b_dy) = ([[_mm256_setzero_ps(); 4]; 2], [[_mm256_setzero_ps(); 4]; 2]);
+        for half in 0..2 {
+            let lanes = AVX2_LANES * half..AVX2_LANES * (half + 1);
+            let (dx, dy): (&[f32; AVX2_LANES], &[f32; AVX2_LANES]) =
+                (STEP_X[lanes.clone()].try_into().expect("8 lanes"), STEP_Y[lanes].try_into().expect("8 lanes"));
+            // SAFETY: `dx` and `dy` are 8 `f32`, the 32 bytes each load reads.
+            #[allow(unsafe_code, reason = "unaligned loads of arrays of a register's size")]
+            let (dx, dy) = unsafe { (_mm256_loadu_ps(dx.as_ptr()), _mm256_loadu_ps(dy.as_ptr())) };
+            for i in 0..stepped {
+                a_dx[half][i] = _mm256_mul_ps(_mm256_set1_ps(f[i].a), dx);
+                b_dy[half][i] = _mm256_mul_ps(_mm256_set1_ps(f[i].b), dy);
+            }
+        }
+        let splat3 = |c: Vec3| c.to_array().map(|c| [c; AVX2_LANES]);
+        // (Loops, not `map` closures over intrinsics, which need the target feature.)
+        let load3 = |c: [[f32; AVX2_LANES]; 3]| {
+            let mut v = [_mm256_setzero_ps(); 3];
+            for (v, c) in v.iter_mut().zip(&c) {
+                // SAFETY: `c` is 8 `f32`, the 32 bytes the load reads.
+                #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
+                let loaded = unsafe { _mm256_loadu_ps(c.as_ptr()) };
+                *v = loaded;
+            }
+            v
+        };
+        let texture = drawn.map(|(t, map)| TextureAvx2 {
+            map: map.avx2(),
+            footprint_scale: _mm256_set1_ps(cc.footprint_scale),
+            par: _mm256_set1_ps(t.par),
+            color1: load3(splat3(t.color1)),
+            color2: load3(splat3(t.color2)),
+        });
+        Self {
+            poly,
+            a: _mm_setr_ps(f[0].a, f[1].a, f[2].a, f[3].a),
+            b: _mm_setr_ps(f[0].b, f[1].b, f[2].b, f[3].b),
+            c: _mm_setr_ps(f[0].c, f[1].c, f[2].c, f[3].c),
+            a_dx,
+            b_dy,
+            texture,
+            color: load3(splat3(poly.color)),
+            fog: load3(splat3(cc.fog_color)),
+            inv_visibility: _mm256_set1_ps(cc.inv_visibility),
+            fogged: cc.inv_visibility != 0.0,
+            rom: TacRom::get(),
+        }
+    }
+
+    /// [`ColorComputers::shade`] in explicit AVX2: the cell's halves (two rows,
+    /// [`AVX2_LANES`] pixels, one 256-bit register) with a visible pixel; when
+    /// both have one, the two side by side ([`Self::cell`]), else the one alone
+    /// ([`Self::group`]). The same operations on the same values as
+    /// [`ColorComputers::shade_lanes`] (Rust neither fuses nor reorders float
+    /// operations), so the same bits.
+    ///
+    /// No packing of a cell's visible pixels into fewer groups (as the portable
+    /// copy does): on Zen 3 the two halves side by side cost hardly more than one
+    /// (their chains of dependent steps overlap), and a packed group costs its
+    /// lanes' scattered stores: terrain's colour computers 3 % faster without it,
+    /// default's the same.
+    ///
+    /// With `f1`, the VB's F1 of the cell follows in the same function
+    /// ([`ColorComputers::shade_accumulate`]).
+    #[target_feature(enable = "avx2")]
+    fn shade_avx2(&self, vis: &Visible, out: &mut CellColors, f1: Option<&mut F1Avx2>) {
+        const N: usize = AVX2_LANES;
+        let visible = visible_avx2(&vis.sets);
+        if visible == 0 {
+            return;
+        }
+        let q = self.at_q(vis);
+        if visible & 0xFF != 0 && visible >> N != 0 {
+            for (half, c) in self.cell(&q).iter().enumerate() {
+                for (out, c) in out.rgb.iter_mut().zip(c) {
+                    store_lanes(*c, (&mut out[N * half..N * (half + 1)]).try_into().expect("8 lanes"));
+                }
+            }
+        } else {
+            let half = usize::from(visible & 0xFF == 0);
+            for (out, c) in out.rgb.iter_mut().zip(self.group(&q, half)) {
+                store_lanes(c, (&mut out[N * half..N * (half + 1)]).try_into().expect("8 lanes"));
+            }
+        }
+        if let Some(f1) = f1 {
+            f1.accumulate(vis, out);
+        }
+    }
+
+    /// `1/Z`, intensity, `u` and `v` (times `1/Z`) at the cell's Q, the centre of
+    /// its pixel (1, 1), each in every lane: [`FracLin::eval`]'s `a x + b y + c`
+    /// of the four in one register.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn at_q(&self, vis: &Visible) -> [__m256; 4] {
+        // The cell's corner as `f32` (the screen's coordinates are far below
+        // 2^31, so through `i32` they convert as from `u32`), plus 1.5.
+        let corner = _mm_cvtepi32_ps(_mm_setr_epi32(vis.px as i32, vis.py as i32, 0, 0));
+        let q = _mm_add_ps(corner, _mm_set1_ps(1.5));
+        let (qx, qy) = (_mm_permute_ps::<0b00_00_00_00>(q), _mm_permute_ps::<0b01_01_01_01>(q));
+        let at = _mm_add_ps(_mm_add_ps(_mm_mul_ps(self.a, qx), _mm_mul_ps(self.b, qy)), self.c);
+        [
+            _mm256_broadcastss_ps(at),
+            _mm256_broadcastss_ps(_mm_permute_ps::<0b01_01_01_01>(at)),
+            _mm256_broadcastss_ps(_mm_permute_ps::<0b10_10_10_10>(at)),
+            _mm256_broadcastss_ps(_mm_permute_ps::<0b11_11_11_11>(at)),
+        ]
+    }
+
+    /// The colours of half `half` of the cell (pixels `8 half .. 8 half + 8`), `q`
+    /// the functions at Q ([`Self::at_q`]).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn group(&self, q: &[__m256; 4], half: usize) -> [__m256; 3] {
+        let front = self.front(q, half);
+        let m = match (&self.texture, front.texture) {
+            (Some(t), Some((u, v, footprint))) => Some(t.map.sample_avx2(u, v, footprint)),
+            _ => None,
+        };
+        self.back(&front, m)
+    }
+
+    /// [`Self::group`] of the cell's two halves, each step done for both before
+    /// the next ([`MapAvx2::sample2_avx2`]): two chains of dependent operations
+    /// side by side.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn cell(&self, q: &[__m256; 4]) -> [[__m256; 3]; 2] {
+        let front = [self.front(q, 0), self.front(q, 1)];
+        let m = match (&self.texture, front[0].texture, front[1].texture) {
+            (Some(t), Some((u0, v0, f0)), Some((u1, v1, f1))) => {
+                let m = t.map.sample2_avx2([u0, u1], [v0, v1], [f0, f1]);
+                [Some(m[0]), Some(m[1])]
+            }
+            _ => [None, None],
+        };
+        [self.back(&front[0], m[0]), self.back(&front[1], m[1])]
+    }
+
+    /// The first steps of [`Self::group`]: `Z`, intensity, and with a texture `u`,
+    /// `v` and the footprint. Each function stepped from Q as `(q + a dx) + b dy`
+    /// (P2 fig. 2), the products from the set-up.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn front(&self, q: &[__m256; 4], half: usize) -> Front {
+        let (a_dx, b_dy) = (&self.a_dx[half & 1], &self.b_dy[half & 1]);
+        let step = |i: usize| _mm256_add_ps(_mm256_add_ps(q[i], a_dx[i]), b_dy[i]);
+        let one = _mm256_set1_ps(1.0);
+        // `Z` and intensity; `max` with the constant second: `maxps` gives it for
+        // a NaN, as `f32::max` does.
+        let z = _mm256_div_ps(one, _mm256_max_ps(step(0), _mm256_set1_ps(f32::MIN_POSITIVE)));
+        let intensity = _mm256_mul_ps(step(1), z);
+        let intensity = _mm256_max_ps(intensity, _mm256_setzero_ps());
+        let texture = self.texture.as_ref().map(|t| {
+            let u = _mm256_mul_ps(step(2), z);
+            let v = _mm256_mul_ps(step(3), z);
+            let footprint = _mm256_mul_ps(_mm256_mul_ps(_mm256_mul_ps(t.footprint_scale, z), z), t.par);
+            (u, v, footprint)
+        });
+        Front { z, intensity, texture }
+    }
+
+    /// The last steps of [`Self::group`]: `C0` from the texture's value `m` (or
+    /// the flat colour), brightness and fog.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn back(&self, front: &Front, m: Option<__m256>) -> [__m256; 3] {
+        let one = _mm256_set1_ps(1.0);
+        let mut c0 = self.color;
+        if let (Some(t), Some(m)) = (&self.texture, m) {
+            let not_m = _mm256_sub_ps(one, m);
+            for (c, c0) in c0.iter_mut().enumerate() {
+                *c0 = _mm256_add_ps(_mm256_mul_ps(t.color1[c], m), _mm256_mul_ps(t.color2[c], not_m));
+            }
+        }
+        let f = if self.fogged { self.rom.fog_avx2(_mm256_mul_ps(front.z, self.inv_visibility)) } else { one };
+        let not_f = _mm256_sub_ps(one, f);
+        let intensity = front.intensity;
+        let mut out = [one; 3];
+        for (c, out) in out.iter_mut().enumerate() {
+            *out = _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(c0[c], intensity), f), _mm256_mul_ps(self.fog[c], not_f));
+        }
+        out
+    }
 }
 
 /// The colour computers' values for one cell of one polygon: the functions at the
@@ -431,7 +709,7 @@ impl<'a> CellShader<'a> {
     }
 
     /// [`Self::group`] of the cell's 16 pixels (lane `i` pixel `i`) in AVX-512
-    /// registers, bit for bit: [`Self::group_avx2`] over the whole cell.
+    /// registers, bit for bit: [`PolyAvx2::group`] over the whole cell.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
     #[inline]
@@ -481,105 +759,6 @@ impl<'a> CellShader<'a> {
             _mm512_add_ps(
                 _mm512_mul_ps(_mm512_mul_ps(c0[c], intensity), f),
                 _mm512_mul_ps(_mm512_set1_ps(fog[c]), not_f),
-            )
-        })
-    }
-
-    /// [`Self::group`] of eight pixels (`4 y + x` per lane) in AVX2 registers,
-    /// bit for bit: the same operations in the same order.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    fn group_avx2(&self, pixel: __m256i) -> [__m256; 3] {
-        let front = self.front_avx2(pixel);
-        let m = match (self.texture, front.texture) {
-            (Some((_, map)), Some((u, v, footprint))) => Some(map.sample_avx2(u, v, footprint)),
-            _ => None,
-        };
-        self.back_avx2(&front, m)
-    }
-
-    /// [`Self::group_avx2`] of the cell's two halves (pixels `0..8` and `8..16`),
-    /// each step done for both before the next ([`TextureMap::sample2_avx2`]):
-    /// two chains of dependent operations side by side.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    fn cell_avx2(&self) -> [[__m256; 3]; 2] {
-        let halves = [_mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), _mm256_setr_epi32(8, 9, 10, 11, 12, 13, 14, 15)];
-        let front = halves.map(|h| self.front_avx2(h));
-        let m = match (self.texture, front[0].texture, front[1].texture) {
-            (Some((_, map)), Some((u0, v0, f0)), Some((u1, v1, f1))) => {
-                let m = map.sample2_avx2([u0, u1], [v0, v1], [f0, f1]);
-                [Some(m[0]), Some(m[1])]
-            }
-            _ => [None, None],
-        };
-        [self.back_avx2(&front[0], m[0]), self.back_avx2(&front[1], m[1])]
-    }
-
-    /// The first steps of [`Self::group_avx2`]: `Z`, intensity, and with a
-    /// texture `u`, `v` and the footprint.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    fn front_avx2(&self, pixel: __m256i) -> Front {
-        let poly = self.poly;
-        // `dx = x - 1`, `dy = y - 1`: Q is pixel (1, 1).
-        let one_i = _mm256_set1_epi32(1);
-        let dx = _mm256_cvtepi32_ps(_mm256_sub_epi32(_mm256_and_si256(pixel, _mm256_set1_epi32(3)), one_i));
-        let dy = _mm256_cvtepi32_ps(_mm256_sub_epi32(_mm256_srli_epi32::<2>(pixel), one_i));
-        let one = _mm256_set1_ps(1.0);
-        // `Z` and intensity; `max` with the constant second: `maxps` gives it for
-        // a NaN, as `f32::max` does.
-        let inv_z = step_avx2(self.z_q, &poly.inv_z, dx, dy);
-        let z = _mm256_div_ps(one, _mm256_max_ps(inv_z, _mm256_set1_ps(f32::MIN_POSITIVE)));
-        let intensity = _mm256_mul_ps(step_avx2(self.i_q, &poly.intensity, dx, dy), z);
-        let intensity = _mm256_max_ps(intensity, _mm256_setzero_ps());
-        let texture = self.texture.map(|(t, _)| {
-            let u = _mm256_mul_ps(step_avx2(self.u_q, &t.u, dx, dy), z);
-            let v = _mm256_mul_ps(step_avx2(self.v_q, &t.v, dx, dy), z);
-            let footprint = _mm256_mul_ps(
-                _mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(self.footprint_scale), z), z),
-                _mm256_set1_ps(t.par),
-            );
-            (u, v, footprint)
-        });
-        Front { z, intensity, texture }
-    }
-
-    /// The last steps of [`Self::group_avx2`]: `C0` from the texture's value `m`
-    /// (or the flat colour), brightness and fog.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    fn back_avx2(&self, front: &Front, m: Option<__m256>) -> [__m256; 3] {
-        let one = _mm256_set1_ps(1.0);
-        let c0: [__m256; 3] = match (self.texture, m) {
-            (Some((t, _)), Some(m)) => {
-                let not_m = _mm256_sub_ps(one, m);
-                let (c1, c2) = (t.color1.to_array(), t.color2.to_array());
-                [0, 1, 2].map(|c| {
-                    _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(c1[c]), m), _mm256_mul_ps(_mm256_set1_ps(c2[c]), not_m))
-                })
-            }
-            _ => {
-                let c = self.poly.color.to_array();
-                [_mm256_set1_ps(c[0]), _mm256_set1_ps(c[1]), _mm256_set1_ps(c[2])]
-            }
-        };
-        let f = if self.inv_visibility != 0.0 {
-            self.rom.fog_avx2(_mm256_mul_ps(front.z, _mm256_set1_ps(self.inv_visibility)))
-        } else {
-            one
-        };
-        let not_f = _mm256_sub_ps(one, f);
-        let fog = self.fog;
-        let intensity = front.intensity;
-        [0, 1, 2].map(|c| {
-            _mm256_add_ps(
-                _mm256_mul_ps(_mm256_mul_ps(c0[c], intensity), f),
-                _mm256_mul_ps(_mm256_set1_ps(fog[c]), not_f),
             )
         })
     }
@@ -663,17 +842,6 @@ fn step_avx512(q: f32, f: &FracLin, dx: __m512, dy: __m512) -> __m512 {
     )
 }
 
-/// `q + a dx + b dy` of eight lanes, in that order (P2 fig. 2's stepping).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[inline]
-fn step_avx2(q: f32, f: &FracLin, dx: __m256, dy: __m256) -> __m256 {
-    _mm256_add_ps(
-        _mm256_add_ps(_mm256_set1_ps(q), _mm256_mul_ps(_mm256_set1_ps(f.a), dx)),
-        _mm256_mul_ps(_mm256_set1_ps(f.b), dy),
-    )
-}
-
 impl ColorComputers<'_> {
     /// The one colour of a polygon whose every pixel [`Self::shade`] colours alike,
     /// or `None`: a face with no texture drawn, whose `1/Z` and intensity have
@@ -688,14 +856,13 @@ impl ColorComputers<'_> {
         if drawn_texture || !still(&poly.inv_z) || !still(&poly.intensity) {
             return None;
         }
-        // Pixel (1, 1) of the first cell, alone.
+        // Pixel (1, 1) of the first cell, alone, in a group of one lane (every
+        // copy's operations are the same: the AVX2 copy's per-polygon set-up
+        // would cost more than this pixel).
         const Q_PIXEL: usize = 5;
-        let mut sets = [0u16; 16];
-        sets[Q_PIXEL] = super::spp::FULL;
-        let vis = Visible { px: 0, py: 0, sets, first: 0, covered: false };
-        let mut out = CellColors::default();
-        self.shade::<false>(poly, &vis, &mut out, &mut Counters::default());
-        Some(out.pixel(Q_PIXEL))
+        let vis = Visible { px: 0, py: 0, sets: [0; 16], first: 0, covered: false };
+        let c = CellShader::new(self, poly, &vis).group::<1>(&[STEP_X[Q_PIXEL]], &[STEP_Y[Q_PIXEL]]);
+        Some(Vec3::new(c[0][0], c[1][0], c[2][0]))
     }
 }
 
@@ -773,13 +940,13 @@ mod tests {
                 transparency: 0,
             };
             let set_ups = texture.as_slice();
-            let cc = ColorComputers {
-                fog_color: Vec3::new(next(), next(), next()),
-                inv_visibility: if round % 3 == 0 { 0.0 } else { next() * 1e-2 },
-                footprint_scale: FOOTPRINT_FACTOR * 1e-3,
-                textures: &maps,
+            let mut cc = ColorComputers::with(
+                Vec3::new(next(), next(), next()),
+                if round % 3 == 0 { 0.0 } else { next() * 1e-2 },
+                FOOTPRINT_FACTOR * 1e-3,
+                &maps,
                 set_ups,
-            };
+            );
             let flat = cc.flat_color(&poly);
             let drawn = texture.is_some_and(|t| t.map == 0);
             assert_eq!(flat.is_some(), !moving && !drawn, "round {round}");
@@ -794,6 +961,49 @@ mod tests {
                     assert!(c.to_array() == flat.to_array(), "round {round}, cell ({px}, {py}), pixel {i}");
                 }
             }
+        }
+    }
+
+    /// The AVX2 copy's per-polygon set-up ([`ColorComputers::prepared_avx2`]) is made
+    /// again when the polygon changes: cells of three polygons in turn, the same
+    /// polygon twice running now and then, give the target's colours.
+    #[test]
+    fn set_up_follows_the_polygon() {
+        let maps = TextureMaps::new(vec![builtin("grass").unwrap(), builtin("checker").unwrap()]);
+        let lin = |a: f32, b: f32, c: f32| FracLin { a, b, c };
+        let set_ups = [0, 1].map(|m| PolyTexture {
+            map: m,
+            u: lin(0.01, -0.003, 0.2 + m as f32),
+            v: lin(-0.002, 0.008, 0.7),
+            par: 1.0 + m as f32,
+            color1: Vec3::new(0.9, 0.5, 0.1),
+            color2: Vec3::new(0.1, 0.2, 0.3 * m as f32),
+        });
+        let polys = [0u32, 1, FramePolygon::NO_TEXTURE].map(|texture| FramePolygon {
+            vertices: 0..0,
+            kind: PrimitiveKind::Face,
+            material: 0,
+            source: (0, 0),
+            color: Vec3::new(0.3, 0.6, 0.9),
+            inv_z: lin(1e-6 * (texture % 7) as f32, -2e-6, 0.02 + 1e-3 * (texture % 5) as f32),
+            intensity: lin(1e-5, 2e-5 * (texture % 3) as f32, 0.015),
+            texture,
+            transparency: 0,
+        });
+        let mut cc = ColorComputers::with(Vec3::new(0.5, 0.6, 0.7), 1e-3, FOOTPRINT_FACTOR * 1e-3, &maps, &set_ups);
+        for (n, p) in [0, 0, 1, 0, 2, 2, 1, 1, 2, 0].into_iter().enumerate() {
+            let vis = Visible {
+                px: 4 * (37 * n as u32 % 480),
+                py: 4 * (11 * n as u32 % 270),
+                sets: [super::super::spp::FULL; 16],
+                first: 0,
+                covered: false,
+            };
+            let (mut out, mut expect) = (CellColors::default(), CellColors::default());
+            cc.shade::<false>(&polys[p], &vis, &mut out, &mut Counters::new(9));
+            cc.shade_scalar(&polys[p], &vis, &mut expect);
+            let bits = |c: &CellColors| c.rgb.map(|c| c.map(f32::to_bits));
+            assert_eq!(bits(&out), bits(&expect), "cell {n}, polygon {p}");
         }
     }
 
@@ -846,13 +1056,13 @@ mod tests {
                 transparency: 0,
             };
             let set_ups = texture.as_slice();
-            let cc = ColorComputers {
-                fog_color: Vec3::new(next(), next(), next()),
-                inv_visibility: if round % 5 == 0 { 0.0 } else { next() * 1e-3 },
-                footprint_scale: FOOTPRINT_FACTOR * 1e-3,
-                textures: &maps,
+            let mut cc = ColorComputers::with(
+                Vec3::new(next(), next(), next()),
+                if round % 5 == 0 { 0.0 } else { next() * 1e-3 },
+                FOOTPRINT_FACTOR * 1e-3,
+                &maps,
                 set_ups,
-            };
+            );
             // Any set of visible pixels, from one to all sixteen; a third of them
             // most of the cell (coloured as whole rows), all of it, or all but one.
             let mut sets = [0u16; 16];
@@ -882,7 +1092,7 @@ mod tests {
                 #[allow(unsafe_code, reason = "a test of the AVX2 copies, after detection")]
                 unsafe {
                     cc.shade_lanes_avx2(&poly, &vis, &mut lanes_avx2);
-                    cc.shade_avx2(&poly, &vis, &mut avx2, None);
+                    cc.prepared_avx2(&poly).shade_avx2(&vis, &mut avx2, None);
                 }
             }
             #[cfg(target_arch = "x86_64")]

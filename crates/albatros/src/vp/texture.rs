@@ -73,7 +73,7 @@ pub struct TextureMap {
     /// Where each level starts in `texels`, `n + 1` entries.
     offsets: Vec<usize>,
     /// The same levels laid out for one 4-byte read per bilinear look-up (the
-    /// AVX2 copy's gathers, [`TextureMap::sample_avx2`]): level `k` (side `s`)
+    /// AVX2 copy's gathers, [`MapAvx2::sample_avx2`]): level `k` (side `s`)
     /// is `s` rows of `s + 1` texel pairs, pair `(r, c)` at byte
     /// `pair_start(n, s) + 2 (r (s + 1) + c)` holding texels `(c mod s, r)` and
     /// `(c mod s, (r + 1) mod s)`. So the 4 bytes at pair `(r0, c0)` are `T1, T2,
@@ -307,10 +307,64 @@ impl TextureMap {
     }
 }
 
+/// A map's constants for the AVX2 copy of the texture unit, each in a register's
+/// lanes ([`TextureMap::avx2`]): set up once per polygon by the colour computers
+/// ([`super::cc`]), so that a cell's look-ups take them from memory as operands
+/// rather than finding the side, the clamps and the pair layout's sizes again per
+/// half-cell (about 25 instructions a half-cell: conversions, shifts, broadcasts).
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct MapAvx2<'a> {
+    /// The map.
+    map: &'a TextureMap,
+    /// The TAC's ROMs.
+    rom: &'static TacRom,
+    /// The side `2^n` (as `f32`), `n` (as `f32`), and `2^(n+1)`: [`Self::level`]'s
+    /// scale and clamps ([`lod_of_texels`]).
+    side: __m256,
+    top: __m256,
+    beyond: __m256,
+    /// `n`.
+    n: __m256i,
+    /// Where each level `k` starts in the pair layout ([`pair_start`]), levels
+    /// `0..8` in the first register's lanes and `8..16` in the second's (levels
+    /// above `n` as `n`): one permute of each and a select per look-up, where the
+    /// start had been found from the side per lane (two dependent `vpmulld` on the
+    /// gather's address, nine instructions).
+    starts: [__m256i; 2],
+    /// The last 4-byte read's start in the pair layout.
+    last: __m256i,
+}
+
 #[cfg(target_arch = "x86_64")]
 impl TextureMap {
-    /// [`Self::sample_lanes`] of eight pixels in AVX2 registers, bit for bit: the
-    /// same operations in the same order, the TAC's `log2` ROM by
+    /// This map's constants for the AVX2 look-ups ([`MapAvx2`]).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(crate) fn avx2(&self) -> MapAvx2<'_> {
+        // Every level's start in the two registers of [`MapAvx2::starts`].
+        const { assert!(MAX_LOG2_SIDE < 2 * 8) };
+        let n = self.log2_side;
+        MapAvx2 {
+            map: self,
+            rom: TacRom::get(),
+            side: _mm256_set1_ps(self.side() as f32),
+            top: _mm256_set1_ps(n as f32),
+            beyond: _mm256_set1_ps((2u32 << n) as f32),
+            n: _mm256_set1_epi32(n as i32),
+            starts: [0, 8].map(|first| {
+                let start = |l: i32| pair_start(n, 1 << (n - (first + l as u32).min(n))) as i32;
+                _mm256_setr_epi32(start(0), start(1), start(2), start(3), start(4), start(5), start(6), start(7))
+            }),
+            last: _mm256_set1_epi32((self.pairs.len() - 4) as i32),
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl MapAvx2<'_> {
+    /// [`TextureMap::sample_lanes`] of eight pixels in AVX2 registers, bit for bit:
+    /// the same operations in the same order, the TAC's `log2` ROM by
     /// [`TacRom::log2_avx2`] and the four texels `T1..T4` by one gather of
     /// 4-byte reads of the pair layout per level. The finer level's look-up is
     /// started at the level the footprint's exponent gives ([`Level::guess`]),
@@ -369,22 +423,19 @@ impl TextureMap {
     }
 
     /// The level `k`, the blend `kr` to the next and the fractional parts of `u`,
-    /// `v` of eight pixels ([`Self::sample_lanes`] up to its first look-up), and
+    /// `v` of eight pixels ([`TextureMap::sample_lanes`] up to its first look-up), and
     /// the guess of `k` from the footprint's exponent ([`Level::guess`]).
     #[target_feature(enable = "avx2")]
     #[inline]
     fn level_avx2(&self, u: __m256, v: __m256, footprint: __m256) -> Level {
-        let n = self.log2_side;
-        // Level of detail ([`Self::lod`], [`lod_of_texels`]).
-        let (side, top, beyond) = (self.side() as f32, n as f32, (2u32 << n) as f32);
-        let texels = _mm256_mul_ps(footprint, _mm256_set1_ps(side));
-        let log = TacRom::get().log2_avx2(texels);
-        let top = _mm256_set1_ps(top);
+        // Level of detail ([`TextureMap::lod`], [`lod_of_texels`]).
+        let texels = _mm256_mul_ps(footprint, self.side);
+        let log = self.rom.log2_avx2(texels);
+        let top = self.top;
         // `log.min(top)` (never NaN: the ROM's `log2` is finite) where below
         // `beyond`, else `top`; all that where above one texel, else 0 (NaN too:
         // ordered compares are false for it).
-        let above =
-            _mm256_blendv_ps(top, _mm256_min_ps(log, top), _mm256_cmp_ps::<_CMP_LT_OQ>(texels, _mm256_set1_ps(beyond)));
+        let above = _mm256_blendv_ps(top, _mm256_min_ps(log, top), _mm256_cmp_ps::<_CMP_LT_OQ>(texels, self.beyond));
         let lod = _mm256_and_ps(above, _mm256_cmp_ps::<_CMP_GT_OQ>(texels, _mm256_set1_ps(1.0)));
         let floor = _mm256_floor_ps(lod);
         let kr = _mm256_sub_ps(lod, floor);
@@ -393,7 +444,7 @@ impl TextureMap {
         // clamped to `0..=n`.
         let biased = _mm256_and_si256(_mm256_srli_epi32::<23>(_mm256_castps_si256(texels)), _mm256_set1_epi32(0xFF));
         let exponent = _mm256_sub_epi32(biased, _mm256_set1_epi32(127));
-        let guess = _mm256_min_epi32(_mm256_max_epi32(exponent, _mm256_setzero_si256()), _mm256_set1_epi32(n as i32));
+        let guess = _mm256_min_epi32(_mm256_max_epi32(exponent, _mm256_setzero_si256()), self.n);
         Level { guess, k, kr, fu: fract01_avx2(u), fv: fract01_avx2(v) }
     }
 
@@ -402,7 +453,7 @@ impl TextureMap {
     #[target_feature(enable = "avx2")]
     #[inline]
     fn coarser_avx2(&self, k: __m256i) -> __m256i {
-        _mm256_min_epi32(_mm256_add_epi32(k, _mm256_set1_epi32(1)), _mm256_set1_epi32(self.log2_side as i32))
+        _mm256_min_epi32(_mm256_add_epi32(k, _mm256_set1_epi32(1)), self.n)
     }
 
     /// [`LevelLookup`] and its read in level `k` per lane (at most `n`) at the
@@ -410,8 +461,7 @@ impl TextureMap {
     #[target_feature(enable = "avx2")]
     #[inline]
     fn bilinear_avx2(&self, k: __m256i, fu: __m256, fv: __m256) -> __m256 {
-        let n = _mm256_set1_epi32(self.log2_side as i32);
-        let level_log2 = _mm256_sub_epi32(n, k);
+        let level_log2 = _mm256_sub_epi32(self.n, k);
         // The side `2^(n-k)` as `f32` from its bits, and as an integer.
         let side_f = _mm256_castsi256_ps(_mm256_slli_epi32::<23>(_mm256_add_epi32(level_log2, _mm256_set1_epi32(127))));
         let side = _mm256_sllv_epi32(_mm256_set1_epi32(1), level_log2);
@@ -425,26 +475,22 @@ impl TextureMap {
         let (j0, kv) = (small_int_avx2(ft), _mm256_sub_ps(t, ft));
         let mask = _mm256_sub_epi32(side, _mm256_set1_epi32(1));
         let (c0, r0) = (_mm256_and_si256(i0, mask), _mm256_and_si256(j0, mask));
-        // [`pair_start`]: `2 (4^(n+1) - 4 s^2) / 3`, the exact division as the
-        // product by the inverse of 3 modulo 2^32, plus `2 (2^(n+1) - 2 s)`.
-        let n4 = _mm256_set1_epi32((4u32 << (2 * self.log2_side)) as i32);
-        let n2 = _mm256_set1_epi32((2u32 << self.log2_side) as i32);
-        let squares = _mm256_sub_epi32(n4, _mm256_slli_epi32::<2>(_mm256_mullo_epi32(side, side)));
-        let start = _mm256_add_epi32(
-            _mm256_slli_epi32::<1>(_mm256_mullo_epi32(squares, _mm256_set1_epi32(0xAAAA_AAABu32 as i32))),
-            _mm256_slli_epi32::<1>(_mm256_sub_epi32(n2, _mm256_slli_epi32::<1>(side))),
+        // [`pair_start`] of level `k` from the map's table (`k` is at most `n`).
+        let start = _mm256_blendv_epi8(
+            _mm256_permutevar8x32_epi32(self.starts[0], k),
+            _mm256_permutevar8x32_epi32(self.starts[1], k),
+            _mm256_cmpgt_epi32(k, _mm256_set1_epi32(7)),
         );
         // Pair `(r0, c0)`: `start + 2 (r0 (s + 1) + c0)`.
         let pair = _mm256_add_epi32(_mm256_mullo_epi32(r0, _mm256_add_epi32(side, _mm256_set1_epi32(1))), c0);
         let index = _mm256_add_epi32(start, _mm256_slli_epi32::<1>(pair));
         // Inside the layout already (the masks, and the starts of levels at most
         // `n`); the `min` makes every read safe whatever the lanes hold.
-        let last = (self.pairs.len() - 4) as i32;
-        let index = _mm256_min_epu32(index, _mm256_set1_epi32(last));
+        let index = _mm256_min_epu32(index, self.last);
         // SAFETY: every lane of `index` is at most `pairs.len() - 4` (the `min`
-        // above): the 4 bytes read at it are inside `pairs`.
+        // above, `last`): the 4 bytes read at it are inside `pairs`.
         #[allow(unsafe_code, reason = "one gather of the texel pairs, the addresses clamped inside them")]
-        let quad = unsafe { _mm256_i32gather_epi32::<1>(self.pairs.as_ptr().cast::<i32>(), index) };
+        let quad = unsafe { _mm256_i32gather_epi32::<1>(self.map.pairs.as_ptr().cast::<i32>(), index) };
         let byte = _mm256_set1_epi32(0xFF);
         let t1 = _mm256_cvtepi32_ps(_mm256_and_si256(quad, byte));
         let t2 = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32::<8>(quad), byte));
@@ -463,7 +509,7 @@ impl TextureMap {
 #[cfg(target_arch = "x86_64")]
 impl TextureMap {
     /// [`Self::sample_lanes`] of sixteen pixels in AVX-512 registers, bit for bit:
-    /// [`Self::sample_avx2`] over twice the lanes, the selects as masks.
+    /// [`MapAvx2::sample_avx2`] over twice the lanes, the selects as masks.
     #[target_feature(enable = "avx512f")]
     #[inline]
     pub(crate) fn sample_avx512(&self, u: __m512, v: __m512, footprint: __m512) -> __m512 {
@@ -489,7 +535,7 @@ impl TextureMap {
         _mm512_add_ps(fine, _mm512_mul_ps(kr, _mm512_sub_ps(coarse, fine)))
     }
 
-    /// [`Self::bilinear_avx2`] over sixteen lanes.
+    /// [`MapAvx2::bilinear_avx2`] over sixteen lanes.
     #[target_feature(enable = "avx512f")]
     #[inline]
     fn bilinear_avx512(&self, k: __m512i, fu: __m512, fv: __m512) -> __m512 {
@@ -535,7 +581,7 @@ impl TextureMap {
     }
 }
 
-/// [`TextureMap::level_avx2`]'s values of eight pixels.
+/// [`MapAvx2::level_avx2`]'s values of eight pixels.
 #[cfg(target_arch = "x86_64")]
 struct Level {
     /// The level `floor(lod)` ([`TextureMap::trilinear`]'s `k`).
@@ -1072,7 +1118,7 @@ mod tests {
         fine + kr * (bilinear(k + 1) - fine)
     }
 
-    /// Eight lanes of [`TextureMap::sample_avx2`], where the processor has AVX2.
+    /// Eight lanes of [`MapAvx2::sample_avx2`], where the processor has AVX2.
     #[cfg(target_arch = "x86_64")]
     fn sample_avx2_lanes(map: &TextureMap, u: &[f32; 8], v: &[f32; 8], footprint: &[f32; 8]) -> Option<[f32; 8]> {
         #[target_feature(enable = "avx2")]
@@ -1081,7 +1127,7 @@ mod tests {
             let mut out = [0.0f32; 8];
             // SAFETY: each array is 8 `f32`, the 32 bytes each load or store touches.
             unsafe {
-                let t = map.sample_avx2(
+                let t = map.avx2().sample_avx2(
                     _mm256_loadu_ps(u.as_ptr()),
                     _mm256_loadu_ps(v.as_ptr()),
                     _mm256_loadu_ps(footprint.as_ptr()),
@@ -1095,7 +1141,7 @@ mod tests {
         std::is_x86_feature_detected!("avx2").then(|| unsafe { run(map, u, v, footprint) })
     }
 
-    /// Two groups of eight lanes of [`TextureMap::sample2_avx2`], where the
+    /// Two groups of eight lanes of [`MapAvx2::sample2_avx2`], where the
     /// processor has AVX2.
     #[cfg(target_arch = "x86_64")]
     fn sample2_avx2_lanes(map: &TextureMap, points: [[&[f32; 8]; 3]; 2]) -> Option<[[f32; 8]; 2]> {
@@ -1106,7 +1152,11 @@ mod tests {
             // SAFETY: each array is 8 `f32`, the 32 bytes each load or store touches.
             unsafe {
                 let load = |g: usize, i: usize| _mm256_loadu_ps(points[g][i].as_ptr());
-                let t = map.sample2_avx2([load(0, 0), load(1, 0)], [load(0, 1), load(1, 1)], [load(0, 2), load(1, 2)]);
+                let t = map.avx2().sample2_avx2(
+                    [load(0, 0), load(1, 0)],
+                    [load(0, 1), load(1, 1)],
+                    [load(0, 2), load(1, 2)],
+                );
                 for (out, t) in out.iter_mut().zip(t) {
                     _mm256_storeu_ps(out.as_mut_ptr(), t);
                 }
@@ -1258,7 +1308,7 @@ mod tests {
             // store touches.
             unsafe {
                 let zero = _mm256_setzero_ps();
-                let level = map.level_avx2(zero, zero, _mm256_loadu_ps(footprint.as_ptr()));
+                let level = map.avx2().level_avx2(zero, zero, _mm256_loadu_ps(footprint.as_ptr()));
                 _mm256_storeu_si256(guess.as_mut_ptr().cast(), level.guess);
                 _mm256_storeu_si256(k.as_mut_ptr().cast(), level.k);
             }
