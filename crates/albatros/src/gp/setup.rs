@@ -187,6 +187,33 @@ impl Setup {
         model_to_eye: &DMat4,
         out: &mut FrameList,
     ) -> bool {
+        // SAFETY: `AVX2 = false` needs no processor feature.
+        #[allow(unsafe_code, reason = "the plain instance of a function unsafe only with AVX2")]
+        unsafe {
+            self.add_face_with::<false>(source, material, color, plane_eye, eye_poly, outline, model_to_eye, out)
+        }
+    }
+
+    /// [`Setup::add_face`], with `AVX2` a triangle's edge codes made in AVX2
+    /// registers ([`EdgeCode::push_triangle_avx2`]; the same codes): for the GP's
+    /// face path compiled for AVX2, into which it is inlined.
+    ///
+    /// # Safety
+    /// With `AVX2`, the processor must have AVX2.
+    #[allow(clippy::too_many_arguments)]
+    #[allow(unsafe_code, reason = "a function that runs AVX2 code when told the processor has it")]
+    #[inline(always)]
+    pub(crate) unsafe fn add_face_with<const AVX2: bool>(
+        &mut self,
+        source: Source,
+        material: Option<&Material>,
+        color: Rgb,
+        plane_eye: &Plane,
+        eye_poly: &[EyeVertex],
+        outline: &[DVec2],
+        model_to_eye: &DMat4,
+        out: &mut FrameList,
+    ) -> bool {
         // A triangle (nearly every face) is snapped into registers, set up from
         // them and its codes made inline ([`EdgeCode::push_triangle`]); other
         // outlines go through `self.snapped`.
@@ -231,7 +258,16 @@ impl Setup {
         match triangle {
             Some(points) => {
                 out.vertices.extend_from_slice(&[vertex(&points[0]), vertex(&points[1]), vertex(&points[2])]);
-                EdgeCode::push_triangle(points, inside_positive, self.root_side, &mut out.edges);
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: with `AVX2` the caller vouches for the processor.
+                #[allow(unsafe_code, reason = "an AVX2 function, its feature vouched for by the caller")]
+                let done = AVX2
+                    && unsafe { EdgeCode::push_triangle_avx2(points, inside_positive, self.root_side, &mut out.edges) };
+                #[cfg(not(target_arch = "x86_64"))]
+                let done = false;
+                if !done {
+                    EdgeCode::push_triangle(points, inside_positive, self.root_side, &mut out.edges);
+                }
             }
             None => {
                 out.vertices.extend(self.snapped.iter().map(vertex));
