@@ -18,7 +18,11 @@
 //! [`Setup::add_face`] is inlined into the GP's face set-up (`gp::FrameBuilder::face`,
 //! whose copy compiled for AVX2 then holds it too); a triangle, nearly every face,
 //! is snapped into registers and its three edge codes made inline
-//! ([`EdgeCode::push_triangle`]), other outlines go through a scratch list.
+//! ([`EdgeCode::push_triangle`]), other outlines go through a scratch list. In the
+//! GP's copy compiled for AVX2 (`Setup::add_face_with` with `AVX2`) the
+//! triangle's points are snapped, and its edge codes made, in AVX2 lanes
+//! (`snap_triangle_points_avx2`, [`EdgeCode::push_triangle_avx2`]; the same
+//! bits).
 
 use glam::{DMat3, DMat4, DVec2, DVec3};
 

@@ -250,7 +250,7 @@ impl EdgeCode {
 
     /// [`EdgeCode::push_triangle`] with the three edges in the lanes of AVX2
     /// registers, for the GP's face path compiled for AVX2: `true` when the
-    /// triangle lies within [`FLOAT_COORD_BITS`] and a root side of at most
+    /// triangle lies within `FLOAT_COORD_BITS` and a root side of at most
     /// [`MAX_ROOT_SIDE`] pixels, a power of two (then its three codes are appended);
     /// else `false`, nothing appended (and [`EdgeCode::push_triangle`] takes it).
     ///
