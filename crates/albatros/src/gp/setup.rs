@@ -261,6 +261,14 @@ impl Setup {
         };
         match triangle {
             Some(points) => {
+                #[cfg(target_arch = "x86_64")]
+                if AVX2 {
+                    // SAFETY: with `AVX2` the caller vouches for the processor.
+                    out.vertices.extend_from_slice(&unsafe { triangle_vertices_avx2(points, &inv_z32) });
+                } else {
+                    out.vertices.extend_from_slice(&[vertex(&points[0]), vertex(&points[1]), vertex(&points[2])]);
+                }
+                #[cfg(not(target_arch = "x86_64"))]
                 out.vertices.extend_from_slice(&[vertex(&points[0]), vertex(&points[1]), vertex(&points[2])]);
                 #[cfg(target_arch = "x86_64")]
                 // SAFETY: with `AVX2` the caller vouches for the processor.
@@ -478,6 +486,39 @@ unsafe fn snap_triangle_points_avx2(outline: [&DVec2; 3]) -> Option<(bool, [(Scr
     // (Written out: `map` over the indices was a call.)
     let points = [(ScreenFx(q[0]), ScreenFx(q[4])), (ScreenFx(q[1]), ScreenFx(q[5])), (ScreenFx(q[2]), ScreenFx(q[6]))];
     (area2 != 0).then_some((area2 > 0, points))
+}
+
+/// A triangle's [`ScreenVertex`]es (what [`Setup::add_face`] makes of each
+/// snapped point: `x`, `y` by [`ScreenFx::to_f32`], `inv_w` by [`FracLin::eval`])
+/// with the three points in the lanes of SSE registers: the same `f32` operations
+/// in the same order (`i32` to `f32`, a division by 256, `(a x + b y) + c`, no
+/// FMA), where the scalar code converted and evaluated each point on its own.
+///
+/// # Safety
+/// The processor must have AVX2 (inlined always, so compiled with the caller's
+/// features: for the GP's face path compiled for AVX2).
+#[cfg(target_arch = "x86_64")]
+#[allow(unsafe_code, reason = "AVX2 instructions, inlined into a caller compiled for AVX2")]
+#[inline(always)]
+unsafe fn triangle_vertices_avx2(points: [(ScreenFx, ScreenFx); 3], f: &FracLin) -> [ScreenVertex; 3] {
+    use std::arch::x86_64::*;
+    let [p0, p1, p2] = points;
+    let one = _mm_set1_ps(SNAP_ONE as f32);
+    let xs = _mm_div_ps(_mm_cvtepi32_ps(_mm_setr_epi32(p0.0 .0, p1.0 .0, p2.0 .0, 0)), one);
+    let ys = _mm_div_ps(_mm_cvtepi32_ps(_mm_setr_epi32(p0.1 .0, p1.1 .0, p2.1 .0, 0)), one);
+    let ws =
+        _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_set1_ps(f.a), xs), _mm_mul_ps(_mm_set1_ps(f.b), ys)), _mm_set1_ps(f.c));
+    let mut lanes = [[0f32; 4]; 3];
+    for (slot, v) in lanes.iter_mut().zip([xs, ys, ws]) {
+        // SAFETY: `slot` is 16 bytes, a register's size (an unaligned store).
+        unsafe { _mm_storeu_ps(slot.as_mut_ptr(), v) };
+    }
+    let [x, y, w] = lanes;
+    [
+        ScreenVertex { x: x[0], y: y[0], inv_w: w[0] },
+        ScreenVertex { x: x[1], y: y[1], inv_w: w[1] },
+        ScreenVertex { x: x[2], y: y[2], inv_w: w[2] },
+    ]
 }
 
 /// The first step of [`snap_outline`]: the outline snapped into `s` without
@@ -717,6 +758,43 @@ mod tests {
                     let got = unsafe { snap_triangle_points_avx2([&pts[0], &pts[1], &pts[2]]) };
                     assert_eq!(got, want, "{pts:?}");
                 }
+            }
+        }
+    }
+
+    /// [`triangle_vertices_avx2`] is [`Setup::add_face`]'s scalar vertices, bit
+    /// for bit, on random points and coefficients (tiny to huge, signed zeros,
+    /// the extreme coordinates).
+    #[test]
+    fn triangle_vertices_avx2_is_the_plain_definition() {
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            let mut rng = Rng(0x7E27_1CE5_0A52);
+            for case in 0..200_000 {
+                let mut c = || match rng.next() % 4 {
+                    0 => (rng.next() % 600_000) as i32 - 1000,
+                    1 => rng.next() as i32,
+                    2 => [i32::MIN, i32::MAX, 0, -1, 1][(rng.next() % 5) as usize],
+                    _ => (rng.next() % 512) as i32 - 256,
+                };
+                let points =
+                    [(ScreenFx(c()), ScreenFx(c())), (ScreenFx(c()), ScreenFx(c())), (ScreenFx(c()), ScreenFx(c()))];
+                let scale = [1e-12, 1e-3, 1.0, 1e3, 1e30][case % 5];
+                let mut k = || match rng.next() % 8 {
+                    0 => 0.0,
+                    1 => -0.0,
+                    _ => rng.range(-scale, scale) as f32,
+                };
+                let f = FracLin { a: k(), b: k(), c: k() };
+                let want = points.map(|a| {
+                    let (x, y) = (a.0.to_f32(), a.1.to_f32());
+                    ScreenVertex { x, y, inv_w: f.eval(x, y) }
+                });
+                // SAFETY: AVX2 was detected above.
+                #[allow(unsafe_code, reason = "the AVX2 path under test, after detection")]
+                let got = unsafe { triangle_vertices_avx2(points, &f) };
+                let bits = |v: [ScreenVertex; 3]| v.map(|v| [v.x.to_bits(), v.y.to_bits(), v.inv_w.to_bits()]);
+                assert_eq!(bits(got), bits(want), "{points:?} {f:?}");
             }
         }
     }
