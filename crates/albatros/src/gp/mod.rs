@@ -24,7 +24,12 @@
 //! operations in the same order, so the same bits: the AVX2 copy's three-operand
 //! VEX forms and register shifts, with the set-up and the edge codes inline in it
 //! (no call per face into them), took `many`'s GP from about 1510 to 1240
-//! instructions a triangle (callgrind, with the set-up's triangle path).
+//! instructions a triangle (callgrind, with the set-up's triangle path). In that
+//! copy alone (`face_body::<true>`), a triangle is also snapped and its three
+//! edge codes made with the three points or edges in the lanes of AVX2 registers
+//! (`setup::snap_triangle_points_avx2`, [`EdgeCode::push_triangle_avx2`], the
+//! edge codes' six 64-bit divisions as two float divisions with an exact
+//! correction): about 1240 to 1020 instructions a triangle.
 //!
 //! Eye coordinates: X right, Y down, Z forward (depth); screen `x = W/2 + f X/Z`,
 //! `y = H/2 + f Y/Z` with `f = (W/2) / tan(fov/2)`. The GP computes in `f64` (the
@@ -47,6 +52,8 @@ use serde::Serialize;
 use crate::db::bsp::{Bsp, BspFace, BspVertex, FaceRecord, NodeBounds, Piece, Plane, Slot, Visit};
 use crate::db::{Eye, Scene, Screen};
 use crate::frame::{FrameList, PrimitiveKind};
+#[cfg(doc)]
+use crate::vp::edge::EdgeCode;
 use clip::Window;
 use setup::{EyeVertex, Setup, Source};
 
@@ -1033,7 +1040,7 @@ impl FrameBuilder<'_> {
     /// [`FrameBuilder::face_body`] compiled for the baseline processor.
     #[inline(never)]
     fn face_plain(&mut self, face: &FaceRecord, tree: &Bsp, to_eye: &DMat4, eye_local: &DVec3, sun: &DVec3) {
-        self.face_body(face, tree, to_eye, eye_local, sun);
+        self.face_body::<false>(face, tree, to_eye, eye_local, sun);
     }
 
     /// [`FrameBuilder::face_body`] compiled for AVX2 and BMI1/2, the set-up and
@@ -1045,12 +1052,21 @@ impl FrameBuilder<'_> {
     #[target_feature(enable = "avx2,bmi1,bmi2,lzcnt,popcnt")]
     #[inline(never)]
     fn face_avx2(&mut self, face: &FaceRecord, tree: &Bsp, to_eye: &DMat4, eye_local: &DVec3, sun: &DVec3) {
-        self.face_body(face, tree, to_eye, eye_local, sun);
+        self.face_body::<true>(face, tree, to_eye, eye_local, sun);
     }
 
-    /// What [`FrameBuilder::face`] does, inlined into each of its copies.
+    /// What [`FrameBuilder::face`] does, inlined into each of its copies; with
+    /// `AVX2` (only in [`FrameBuilder::face_avx2`]) a triangle's edge codes are made
+    /// in AVX2 registers ([`Setup::add_face_with`]).
     #[inline(always)]
-    fn face_body(&mut self, face: &FaceRecord, tree: &Bsp, to_eye: &DMat4, eye_local: &DVec3, sun: &DVec3) {
+    fn face_body<const AVX2: bool>(
+        &mut self,
+        face: &FaceRecord,
+        tree: &Bsp,
+        to_eye: &DMat4,
+        eye_local: &DVec3,
+        sun: &DVec3,
+    ) {
         let vertices = tree.record_vertices_of(face);
         let Some(instance_class) = self.f.class[face.instance as usize] else { return };
         let counters = &mut self.counters;
@@ -1116,16 +1132,20 @@ impl FrameBuilder<'_> {
                 let screen = eye.map(|v| view.project(v.position));
                 let source =
                     Source { kind: PrimitiveKind::Face, material: face.material, ids: (face.instance, face.face) };
-                let ok = self.setup.add_face(
-                    source,
-                    Some(material),
-                    material.color,
-                    &plane_eye,
-                    &eye,
-                    &screen,
-                    &self.f.model_to_eye[face.instance as usize],
-                    self.out,
-                );
+                // SAFETY: `face_body::<true>` runs only in `face_avx2`, after detection.
+                #[allow(unsafe_code, reason = "the AVX2 set-up in the face path compiled for AVX2")]
+                let ok = unsafe {
+                    self.setup.add_face_with::<AVX2>(
+                        source,
+                        Some(material),
+                        material.color,
+                        &plane_eye,
+                        &eye,
+                        &screen,
+                        &self.f.model_to_eye[face.instance as usize],
+                        self.out,
+                    )
+                };
                 if !ok {
                     counters.degenerate += 1;
                 }
@@ -1187,16 +1207,20 @@ impl FrameBuilder<'_> {
             &scratch.window
         };
         let source = Source { kind: PrimitiveKind::Face, material: face.material, ids: (face.instance, face.face) };
-        let ok = self.setup.add_face(
-            source,
-            Some(material),
-            material.color,
-            &plane_eye,
-            &scratch.eye,
-            outline,
-            &self.f.model_to_eye[face.instance as usize],
-            self.out,
-        );
+        // SAFETY: `face_body::<true>` runs only in `face_avx2`, after detection.
+        #[allow(unsafe_code, reason = "the AVX2 set-up in the face path compiled for AVX2")]
+        let ok = unsafe {
+            self.setup.add_face_with::<AVX2>(
+                source,
+                Some(material),
+                material.color,
+                &plane_eye,
+                &scratch.eye,
+                outline,
+                &self.f.model_to_eye[face.instance as usize],
+                self.out,
+            )
+        };
         if !ok {
             counters.degenerate += 1;
         }

@@ -18,7 +18,11 @@
 //! [`Setup::add_face`] is inlined into the GP's face set-up (`gp::FrameBuilder::face`,
 //! whose copy compiled for AVX2 then holds it too); a triangle, nearly every face,
 //! is snapped into registers and its three edge codes made inline
-//! ([`EdgeCode::push_triangle`]), other outlines go through a scratch list.
+//! ([`EdgeCode::push_triangle`]), other outlines go through a scratch list. In the
+//! GP's copy compiled for AVX2 (`Setup::add_face_with` with `AVX2`) the
+//! triangle's points are snapped, and its edge codes made, in AVX2 lanes
+//! (`snap_triangle_points_avx2`, [`EdgeCode::push_triangle_avx2`]; the same
+//! bits).
 
 use glam::{DMat3, DMat4, DVec2, DVec3};
 
@@ -26,7 +30,7 @@ use super::View;
 use crate::db::bsp::Plane;
 use crate::db::{Material, MaterialTexture, Rgb, Scene};
 use crate::frame::{FracLin, FrameList, FramePolygon, PolyTexture, PrimitiveKind, ScreenVertex};
-use crate::vp::edge::{EdgeCode, ScreenFx};
+use crate::vp::edge::{EdgeCode, ScreenFx, SNAP_ONE};
 use crate::vp::gq::CellProcessors;
 
 /// A vertex in eye coordinates with its brightness.
@@ -187,11 +191,38 @@ impl Setup {
         model_to_eye: &DMat4,
         out: &mut FrameList,
     ) -> bool {
+        // SAFETY: `AVX2 = false` needs no processor feature.
+        #[allow(unsafe_code, reason = "the plain instance of a function unsafe only with AVX2")]
+        unsafe {
+            self.add_face_with::<false>(source, material, color, plane_eye, eye_poly, outline, model_to_eye, out)
+        }
+    }
+
+    /// [`Setup::add_face`], with `AVX2` a triangle's edge codes made in AVX2
+    /// registers ([`EdgeCode::push_triangle_avx2`]; the same codes): for the GP's
+    /// face path compiled for AVX2, into which it is inlined.
+    ///
+    /// # Safety
+    /// With `AVX2`, the processor must have AVX2.
+    #[allow(clippy::too_many_arguments)]
+    #[allow(unsafe_code, reason = "a function that runs AVX2 code when told the processor has it")]
+    #[inline(always)]
+    pub(crate) unsafe fn add_face_with<const AVX2: bool>(
+        &mut self,
+        source: Source,
+        material: Option<&Material>,
+        color: Rgb,
+        plane_eye: &Plane,
+        eye_poly: &[EyeVertex],
+        outline: &[DVec2],
+        model_to_eye: &DMat4,
+        out: &mut FrameList,
+    ) -> bool {
         // A triangle (nearly every face) is snapped into registers, set up from
         // them and its codes made inline ([`EdgeCode::push_triangle`]); other
         // outlines go through `self.snapped`.
         let (inside_positive, triangle) = match outline {
-            [a, b, c] => match snap_triangle_points([a, b, c]) {
+            [a, b, c] => match triangle_points::<AVX2>([a, b, c]) {
                 Some((inside, points)) => (inside, Some(points)),
                 None => return false,
             },
@@ -230,8 +261,25 @@ impl Setup {
         };
         match triangle {
             Some(points) => {
+                #[cfg(target_arch = "x86_64")]
+                if AVX2 {
+                    // SAFETY: with `AVX2` the caller vouches for the processor.
+                    out.vertices.extend_from_slice(&unsafe { triangle_vertices_avx2(points, &inv_z32) });
+                } else {
+                    out.vertices.extend_from_slice(&[vertex(&points[0]), vertex(&points[1]), vertex(&points[2])]);
+                }
+                #[cfg(not(target_arch = "x86_64"))]
                 out.vertices.extend_from_slice(&[vertex(&points[0]), vertex(&points[1]), vertex(&points[2])]);
-                EdgeCode::push_triangle(points, inside_positive, self.root_side, &mut out.edges);
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: with `AVX2` the caller vouches for the processor.
+                #[allow(unsafe_code, reason = "an AVX2 function, its feature vouched for by the caller")]
+                let done = AVX2
+                    && unsafe { EdgeCode::push_triangle_avx2(points, inside_positive, self.root_side, &mut out.edges) };
+                #[cfg(not(target_arch = "x86_64"))]
+                let done = false;
+                if !done {
+                    EdgeCode::push_triangle(points, inside_positive, self.root_side, &mut out.edges);
+                }
             }
             None => {
                 out.vertices.extend(self.snapped.iter().map(vertex));
@@ -348,6 +396,129 @@ fn snap_triangle_points(outline: [&DVec2; 3]) -> Option<(bool, [(ScreenFx, Scree
     }
     let area2 = shoelace(&q);
     (area2 != 0).then_some((area2 > 0, q))
+}
+
+/// [`snap_triangle_points`], with `AVX2` by [`snap_triangle_points_avx2`] (the
+/// same result).
+///
+/// # Safety
+/// With `AVX2`, the processor must have AVX2.
+#[allow(unsafe_code, reason = "a function that runs AVX2 code when told the processor has it")]
+#[inline(always)]
+unsafe fn triangle_points<const AVX2: bool>(outline: [&DVec2; 3]) -> Option<(bool, [(ScreenFx, ScreenFx); 3])> {
+    #[cfg(target_arch = "x86_64")]
+    if AVX2 {
+        // SAFETY: with `AVX2` the caller vouches for the processor.
+        return unsafe { snap_triangle_points_avx2(outline) };
+    }
+    snap_triangle_points(outline)
+}
+
+/// [`snap_triangle_points`] in AVX2 registers, the three points in lanes: the
+/// same result for every input (tested, NaN, infinities, ties and huge values
+/// among them), where the scalar code converted each coordinate on its own
+/// (about 5 instructions each for the saturating conversion) and formed the
+/// area by six scalar products.
+///
+/// - `ScreenFx::from_f64(v)` is `(v * 256).round() as i32`. The product is the
+///   same `vmulpd`. `round` (half away from zero) is `t = trunc(x)` plus
+///   `copysign(1, x)` where `|x - t| >= 0.5`: `x - t` is exact (for `|x| >= 2^52`
+///   both are the same integer, below that it is `x`'s fraction, a float), and so
+///   is `t ± 1` then (`|t| < 2^52`); a NaN stays NaN (the comparison is false),
+///   an infinity stays itself (`inf - inf` is NaN). `as i32` saturates and takes
+///   NaN to 0: NaN lanes are zeroed first, then the values clamped to `i32`'s
+///   range (both bounds are floats) and truncated (`vcvttpd2dq`, exact on the
+///   clamped integers).
+/// - The equal-points test compares each point with the next.
+/// - The doubled area is the same three products `x_i y_(i+1) - x_(i+1) y_i`
+///   (`vpmuldq`, exact: 32-bit factors) summed with wrapping 64-bit additions:
+///   the scalar `i64` sum in release builds, whatever the order.
+///
+/// # Safety
+/// The processor must have AVX2 (inlined always, so compiled with the caller's
+/// features: for the GP's face path compiled for AVX2).
+#[cfg(target_arch = "x86_64")]
+#[allow(unsafe_code, reason = "AVX2 instructions, inlined into a caller compiled for AVX2")]
+#[inline(always)]
+unsafe fn snap_triangle_points_avx2(outline: [&DVec2; 3]) -> Option<(bool, [(ScreenFx, ScreenFx); 3])> {
+    use std::arch::x86_64::*;
+    let [a, b, c] = outline;
+    // Lane k: point k; lane 3 repeats point 0 (so that each lane's next point,
+    // one lane on, is the triangle's next point for lanes 0 to 2).
+    // (Macros rather than closures: a closure is a function of its own, kept out
+    // of line without the caller's features.)
+    macro_rules! snap {
+        ($v:expr) => {{
+            let x = _mm256_mul_pd($v, _mm256_set1_pd(f64::from(SNAP_ONE)));
+            let t = _mm256_round_pd::<{ _MM_FROUND_TO_ZERO | _MM_FROUND_NO_EXC }>(x);
+            let sign = _mm256_and_pd(x, _mm256_set1_pd(-0.0));
+            let fraction = _mm256_andnot_pd(_mm256_set1_pd(-0.0), _mm256_sub_pd(x, t));
+            let half = _mm256_cmp_pd::<_CMP_GE_OQ>(fraction, _mm256_set1_pd(0.5));
+            let r = _mm256_add_pd(t, _mm256_and_pd(half, _mm256_or_pd(sign, _mm256_set1_pd(1.0))));
+            let r = _mm256_andnot_pd(_mm256_cmp_pd::<_CMP_UNORD_Q>(r, r), r);
+            let r = _mm256_max_pd(r, _mm256_set1_pd(f64::from(i32::MIN)));
+            _mm256_cvttpd_epi32(_mm256_min_pd(r, _mm256_set1_pd(f64::from(i32::MAX))))
+        }};
+    }
+    macro_rules! wide {
+        ($v:expr) => {
+            _mm256_cvtepi32_epi64($v)
+        };
+    }
+    let xs = snap!(_mm256_setr_pd(a.x, b.x, c.x, a.x));
+    let ys = snap!(_mm256_setr_pd(a.y, b.y, c.y, a.y));
+    let (xn, yn) = (_mm_shuffle_epi32::<0b01_00_10_01>(xs), _mm_shuffle_epi32::<0b01_00_10_01>(ys));
+    let same = _mm_and_si128(_mm_cmpeq_epi32(xs, xn), _mm_cmpeq_epi32(ys, yn));
+    if _mm_movemask_ps(_mm_castsi128_ps(same)) & 0b111 != 0 {
+        return None;
+    }
+    let terms = _mm256_sub_epi64(_mm256_mul_epi32(wide!(xs), wide!(yn)), _mm256_mul_epi32(wide!(xn), wide!(ys)));
+    let mut t = [0i64; 4];
+    // SAFETY: `t` is 32 bytes, a register's size (an unaligned store).
+    unsafe { _mm256_storeu_si256(t.as_mut_ptr().cast(), terms) };
+    let area2 = t[0].wrapping_add(t[1]).wrapping_add(t[2]);
+    let mut q = [0i32; 8];
+    // SAFETY: each half of `q` is 16 bytes, a register's size (unaligned stores).
+    unsafe {
+        _mm_storeu_si128(q.as_mut_ptr().cast(), xs);
+        _mm_storeu_si128(q.as_mut_ptr().add(4).cast(), ys);
+    }
+    // (Written out: `map` over the indices was a call.)
+    let points = [(ScreenFx(q[0]), ScreenFx(q[4])), (ScreenFx(q[1]), ScreenFx(q[5])), (ScreenFx(q[2]), ScreenFx(q[6]))];
+    (area2 != 0).then_some((area2 > 0, points))
+}
+
+/// A triangle's [`ScreenVertex`]es (what [`Setup::add_face`] makes of each
+/// snapped point: `x`, `y` by [`ScreenFx::to_f32`], `inv_w` by [`FracLin::eval`])
+/// with the three points in the lanes of SSE registers: the same `f32` operations
+/// in the same order (`i32` to `f32`, a division by 256, `(a x + b y) + c`, no
+/// FMA), where the scalar code converted and evaluated each point on its own.
+///
+/// # Safety
+/// The processor must have AVX2 (inlined always, so compiled with the caller's
+/// features: for the GP's face path compiled for AVX2).
+#[cfg(target_arch = "x86_64")]
+#[allow(unsafe_code, reason = "AVX2 instructions, inlined into a caller compiled for AVX2")]
+#[inline(always)]
+unsafe fn triangle_vertices_avx2(points: [(ScreenFx, ScreenFx); 3], f: &FracLin) -> [ScreenVertex; 3] {
+    use std::arch::x86_64::*;
+    let [p0, p1, p2] = points;
+    let one = _mm_set1_ps(SNAP_ONE as f32);
+    let xs = _mm_div_ps(_mm_cvtepi32_ps(_mm_setr_epi32(p0.0 .0, p1.0 .0, p2.0 .0, 0)), one);
+    let ys = _mm_div_ps(_mm_cvtepi32_ps(_mm_setr_epi32(p0.1 .0, p1.1 .0, p2.1 .0, 0)), one);
+    let ws =
+        _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_set1_ps(f.a), xs), _mm_mul_ps(_mm_set1_ps(f.b), ys)), _mm_set1_ps(f.c));
+    let mut lanes = [[0f32; 4]; 3];
+    for (slot, v) in lanes.iter_mut().zip([xs, ys, ws]) {
+        // SAFETY: `slot` is 16 bytes, a register's size (an unaligned store).
+        unsafe { _mm_storeu_ps(slot.as_mut_ptr(), v) };
+    }
+    let [x, y, w] = lanes;
+    [
+        ScreenVertex { x: x[0], y: y[0], inv_w: w[0] },
+        ScreenVertex { x: x[1], y: y[1], inv_w: w[1] },
+        ScreenVertex { x: x[2], y: y[2], inv_w: w[2] },
+    ]
 }
 
 /// The first step of [`snap_outline`]: the outline snapped into `s` without
@@ -506,6 +677,126 @@ mod tests {
             taken[usize::from(m.determinant().abs() > 1e-18)] += 1;
         }
         assert!(taken.iter().all(|&k| k > 1000), "both branches tested: {taken:?}");
+    }
+
+    /// [`snap_triangle_points_avx2`] is [`snap_triangle_points`]: random
+    /// triangles on and far off a screen, tiny ones (equal points, zero areas),
+    /// and coordinates at the snap's ties and limits (halves, the largest float
+    /// below a half, `-0.0`, `2^52` and neighbours, `i32`'s range and beyond,
+    /// infinities, NaN).
+    #[test]
+    fn snap_triangle_points_avx2_is_the_plain_definition() {
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            let s = 1.0 / f64::from(SNAP_ONE);
+            let special = [
+                0.0,
+                -0.0,
+                0.5 * s,
+                -0.5 * s,
+                1.5 * s,
+                -2.5 * s,
+                0.499_999_999_999_999_94 * s,
+                -0.499_999_999_999_999_94 * s,
+                (1u64 << 52) as f64 * s,
+                ((1u64 << 52) as f64 + 1.0) * s,
+                ((1u64 << 52) as f64 - 0.5) * s,
+                ((1u64 << 53) as f64 + 2.0) * s,
+                f64::from(i32::MAX) * s,
+                (f64::from(i32::MAX) + 0.5) * s,
+                (f64::from(i32::MAX) + 1.0) * s,
+                f64::from(i32::MIN) * s,
+                (f64::from(i32::MIN) - 0.5) * s,
+                (f64::from(i32::MIN) - 1.0) * s,
+                1e300,
+                -1e300,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::NAN,
+                f64::MIN_POSITIVE,
+                1_919.998_046_875,
+                1_080.001_953_125,
+            ];
+            let mut rng = Rng(0x5A1D_7E57_0F2A);
+            let mut outcomes = [0usize; 3];
+            for case in 0..400_000 {
+                let mut v = |k: u64| match (case + k as usize) % 4 {
+                    0 => special[(rng.next() % special.len() as u64) as usize],
+                    1 => rng.range(-4.0, 2000.0),
+                    2 => (rng.range(0.0, 512.0).floor() + [0.0, 0.5, 0.25, 0.75][(rng.next() % 4) as usize]) * s,
+                    _ => rng.range(-1e10, 1e10),
+                };
+                let mut c = [v(0), v(1), v(2), v(3), v(4), v(5)];
+                if case % 5 == 0 {
+                    // Tiny triangles: equal points and zero areas after snapping.
+                    for k in 2..6 {
+                        c[k] = c[k % 2] + rng.range(-2.0, 2.0) * s;
+                    }
+                }
+                let pts = [DVec2::new(c[0], c[1]), DVec2::new(c[2], c[3]), DVec2::new(c[4], c[5])];
+                let want = snap_triangle_points([&pts[0], &pts[1], &pts[2]]);
+                // SAFETY: AVX2 was detected above.
+                #[allow(unsafe_code, reason = "the AVX2 path under test, after detection")]
+                let got = unsafe { snap_triangle_points_avx2([&pts[0], &pts[1], &pts[2]]) };
+                assert_eq!(got, want, "{pts:?}");
+                outcomes[match got {
+                    None => 0,
+                    Some((false, _)) => 1,
+                    Some((true, _)) => 2,
+                }] += 1;
+            }
+            assert!(outcomes.iter().all(|&k| k > 10_000), "every outcome tested: {outcomes:?}");
+            // Each special value in each coordinate of an otherwise ordinary triangle.
+            for &x in &special {
+                for k in 0..6 {
+                    let mut c = [10.0, 20.0, 300.5, 40.25, 17.0, 500.0];
+                    c[k] = x;
+                    let pts = [DVec2::new(c[0], c[1]), DVec2::new(c[2], c[3]), DVec2::new(c[4], c[5])];
+                    let want = snap_triangle_points([&pts[0], &pts[1], &pts[2]]);
+                    // SAFETY: AVX2 was detected above.
+                    #[allow(unsafe_code, reason = "the AVX2 path under test, after detection")]
+                    let got = unsafe { snap_triangle_points_avx2([&pts[0], &pts[1], &pts[2]]) };
+                    assert_eq!(got, want, "{pts:?}");
+                }
+            }
+        }
+    }
+
+    /// [`triangle_vertices_avx2`] is [`Setup::add_face`]'s scalar vertices, bit
+    /// for bit, on random points and coefficients (tiny to huge, signed zeros,
+    /// the extreme coordinates).
+    #[test]
+    fn triangle_vertices_avx2_is_the_plain_definition() {
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            let mut rng = Rng(0x7E27_1CE5_0A52);
+            for case in 0..200_000 {
+                let mut c = || match rng.next() % 4 {
+                    0 => (rng.next() % 600_000) as i32 - 1000,
+                    1 => rng.next() as i32,
+                    2 => [i32::MIN, i32::MAX, 0, -1, 1][(rng.next() % 5) as usize],
+                    _ => (rng.next() % 512) as i32 - 256,
+                };
+                let points =
+                    [(ScreenFx(c()), ScreenFx(c())), (ScreenFx(c()), ScreenFx(c())), (ScreenFx(c()), ScreenFx(c()))];
+                let scale = [1e-12, 1e-3, 1.0, 1e3, 1e30][case % 5];
+                let mut k = || match rng.next() % 8 {
+                    0 => 0.0,
+                    1 => -0.0,
+                    _ => rng.range(-scale, scale) as f32,
+                };
+                let f = FracLin { a: k(), b: k(), c: k() };
+                let want = points.map(|a| {
+                    let (x, y) = (a.0.to_f32(), a.1.to_f32());
+                    ScreenVertex { x, y, inv_w: f.eval(x, y) }
+                });
+                // SAFETY: AVX2 was detected above.
+                #[allow(unsafe_code, reason = "the AVX2 path under test, after detection")]
+                let got = unsafe { triangle_vertices_avx2(points, &f) };
+                let bits = |v: [ScreenVertex; 3]| v.map(|v| [v.x.to_bits(), v.y.to_bits(), v.inv_w.to_bits()]);
+                assert_eq!(bits(got), bits(want), "{points:?} {f:?}");
+            }
+        }
     }
 
     #[test]

@@ -43,6 +43,13 @@ const MAX_ROOT_SIDE: u32 = 4 << MAX_ROOT_LEVEL;
 /// `2^27 2^27 2^8 = 2^62` for `t` up to [`MAX_ROOT_SIDE`] pixels.
 const FAST_COORD_BITS: u32 = 26;
 
+/// [`EdgeCode::push_triangle_avx2`] takes triangles whose snapped coordinates `c`
+/// all have `c ^ (c >> 31)` below `2^FLOAT_COORD_BITS` (`-2^21 <= c < 2^21`: 8192
+/// pixels either way, every window the numbers support): then every integer it
+/// forms, numerators included, is below `2^53` in magnitude and exact in an `f64`
+/// (the bounds are worked out there).
+const FLOAT_COORD_BITS: u32 = 21;
+
 /// A snapped screen coordinate: pixels in 24.8 fixed point.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
 pub struct ScreenFx(pub i32);
@@ -241,6 +248,190 @@ impl EdgeCode {
         }
     }
 
+    /// [`EdgeCode::push_triangle`] with the three edges in the lanes of AVX2
+    /// registers, for the GP's face path compiled for AVX2: `true` when the
+    /// triangle lies within `FLOAT_COORD_BITS` and a root side of at most
+    /// [`MAX_ROOT_SIDE`] pixels, a power of two (then its three codes are appended);
+    /// else `false`, nothing appended (and [`EdgeCode::push_triangle`] takes it).
+    ///
+    /// The same codes as [`EdgeCode::new_fast`], bit for bit (tested against the
+    /// definition): the integer steps are the same, in 32-bit lanes where they fit,
+    /// and the two floor divisions per edge (six 64-bit `idiv`s a triangle,
+    /// about a third of [`EdgeCode::new_fast`]'s cost) are float divisions with one
+    /// correction, exact for these inputs:
+    /// - coordinates `c` satisfy `-2^21 <= c < 2^21`, so `|dx|, |dy| < 2^22` and
+    ///   (by TG) `|du| <= |dw| < 2^22`, `|aw| <= 2^21`;
+    /// - the numerators `n1 = -aw du 2^8` (at most `2^51`) and `n2 = n1 + du
+    ///   2^(root_bits + 16)` (the second term at most `2^22 2^29 = 2^51`, so `|n2| <=
+    ///   2^52`) are integers below `2^53`, so each `f64` operation that forms them
+    ///   (products and a sum of integers, scalings by powers of two) is exact;
+    /// - IEEE division is correctly rounded, hence monotone: with `F = floor(n /
+    ///   dw)`, `F <= n / dw < F + 1` and `F`, `F + 1` are floats (below `2^31`, see
+    ///   below), so `F <= fl(n / dw) <= F + 1` and `q = floor(fl(n / dw))` is `F` or
+    ///   `F + 1`;
+    /// - `q dw` is an integer of magnitude at most `|n| + dw < 2^53`, so the product
+    ///   is exact, and `r = n - q dw` lies in `[-dw, dw)`, a float, so the difference
+    ///   is exact: `r >= 0` for `q = F`, `r < 0` for `q = F + 1`, and `q - (r < 0)`
+    ///   is `F`;
+    /// - the quotients fit `i32`: `|q1| <= |aw| 2^8 |du / dw| <= 2^29`, `|q2 - q1| <=
+    ///   2^(root_bits + 16) + 1 <= 2^29 + 1`; and so do `(au << 8) + q1` (`|au| <=
+    ///   2^21`) and `q2 - q1`, which are then widened to `i64` and shifted as in
+    ///   [`EdgeCode::new_fast`], whose `(x << 16) >> root_bits` is `x << (16 -
+    ///   root_bits)` (`root_bits <= 13`, the low bits zero).
+    ///
+    /// `exact32` is always `true` here (`|dx|, |dy| < 2^22`).
+    ///
+    /// Inlined always, and compiled with its caller's features: for the GP's face
+    /// path compiled for AVX2 (`#[inline]` on a `#[target_feature]` function left a
+    /// call a triangle, with the points passed through memory, the registers saved
+    /// and the vector's length written back after each code).
+    ///
+    /// # Safety
+    /// The processor must have AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[allow(unsafe_code, reason = "AVX2 instructions, inlined into a caller compiled for AVX2")]
+    #[inline(always)]
+    pub unsafe fn push_triangle_avx2(
+        points: [(ScreenFx, ScreenFx); 3],
+        inside_positive: bool,
+        root_side: u32,
+        out: &mut Vec<EdgeCode>,
+    ) -> bool {
+        use std::arch::x86_64::*;
+        const _: () = assert!(1 << (FLOAT_COORD_BITS + 1) <= EXACT32_COEFFICIENT_LIMIT);
+        const _: () = assert!(MAX_ROOT_SIDE.trailing_zeros() <= ROOT_V_BITS);
+        let [p0, p1, p2] = points;
+        // Lane k: the edge from point k to point k + 1; lane 3 repeats lane 0
+        // (never stored; a non-zero divisor where lane 0 has one).
+        let ax = _mm_setr_epi32(p0.0 .0, p1.0 .0, p2.0 .0, p0.0 .0);
+        let ay = _mm_setr_epi32(p0.1 .0, p1.1 .0, p2.1 .0, p0.1 .0);
+        let bx = _mm_shuffle_epi32::<0b01_00_10_01>(ax);
+        let by = _mm_shuffle_epi32::<0b01_00_10_01>(ay);
+        // `x ^ (x >> 31)` is `|x|` or `|x| - 1`: all magnitudes tested by one OR.
+        let mag =
+            _mm_or_si128(_mm_xor_si128(ax, _mm_srai_epi32::<31>(ax)), _mm_xor_si128(ay, _mm_srai_epi32::<31>(ay)));
+        let mag = _mm_or_si128(mag, _mm_shuffle_epi32::<0b00_11_10_11>(mag));
+        let mag = _mm_or_si128(mag, _mm_shuffle_epi32::<0b00_00_00_01>(mag));
+        if (_mm_cvtsi128_si32(mag) as u32) >> FLOAT_COORD_BITS != 0
+            || root_side > MAX_ROOT_SIDE
+            || !root_side.is_power_of_two()
+        {
+            return false;
+        }
+        let zero = _mm_setzero_si128();
+        let (dx, dy) = (_mm_sub_epi32(bx, ax), _mm_sub_epi32(by, ay));
+        // All-ones lanes where the edge is vertical (|dy| > |dx|).
+        let vertical = _mm_cmpgt_epi32(_mm_abs_epi32(dy), _mm_abs_epi32(dx));
+        // The side of greater V is the positive one: dy < 0 for a vertical edge,
+        // dx > 0 for a horizontal one.
+        let greater = _mm_blendv_epi8(_mm_cmpgt_epi32(dx, zero), _mm_cmpgt_epi32(zero, dy), vertical);
+        let inside = _mm_set1_epi32(-i32::from(inside_positive));
+        let lr = _mm_cmpeq_epi32(greater, inside);
+        // (Macros rather than closures: a closure is a function of its own, kept
+        // out of line without the caller's features.)
+        // `(x ^ m) - m` is `-x` where `m` is all ones, `x` where it is zero.
+        macro_rules! negate_where {
+            ($x:expr, $m:expr) => {{
+                let m = $m;
+                _mm_sub_epi32(_mm_xor_si128($x, m), m)
+            }};
+        }
+        macro_rules! wide {
+            ($x:expr) => {
+                _mm256_cvtepi32_epi64($x)
+            };
+        }
+        let ones = _mm_set1_epi32(-1);
+        let ca = negate_where!(dy, greater);
+        let cb = negate_where!(dx, _mm_xor_si128(greater, ones));
+        // `c = -(ca ax + cb ay)` in 64 bits (`vpmuldq`: the low 32 bits' signed
+        // product; `|ca ax| < 2^43`).
+        let cc = _mm256_sub_epi64(
+            _mm256_setzero_si256(),
+            _mm256_add_epi64(_mm256_mul_epi32(wide!(ca), wide!(ax)), _mm256_mul_epi32(wide!(cb), wide!(ay))),
+        );
+        // The ends in (x, y) order: a first where a <= b.
+        let a_first =
+            _mm_or_si128(_mm_cmpgt_epi32(bx, ax), _mm_andnot_si128(_mm_cmpgt_epi32(ay, by), _mm_cmpeq_epi32(ax, bx)));
+        let (e0x, e0y) = (_mm_blendv_epi8(bx, ax, a_first), _mm_blendv_epi8(by, ay, a_first));
+        let (e1x, e1y) = (_mm_blendv_epi8(ax, bx, a_first), _mm_blendv_epi8(ay, by, a_first));
+        // V along u, t across w, from the end of smaller t.
+        let au = _mm_blendv_epi8(ay, ax, vertical);
+        let aw = _mm_blendv_epi8(ax, ay, vertical);
+        let du = _mm_blendv_epi8(dy, dx, vertical);
+        let dw = _mm_blendv_epi8(dx, dy, vertical);
+        let backwards = _mm_cmpgt_epi32(zero, dw);
+        let au = _mm_add_epi32(au, _mm_and_si128(du, backwards));
+        let aw = _mm_add_epi32(aw, _mm_and_si128(dw, backwards));
+        let du = negate_where!(du, backwards);
+        let dw = negate_where!(dw, backwards);
+        if _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(dw, zero))) & 0b111 != 0 {
+            // Two equal points: the scalar path panics as it always did.
+            return false;
+        }
+        // The floor divisions (see above): numerators, quotients, one correction.
+        let root_bits = root_side.trailing_zeros();
+        let scale_bits = ROOT_V_BITS - SNAP_BITS;
+        let (awf, duf, dwf) = (_mm256_cvtepi32_pd(aw), _mm256_cvtepi32_pd(du), _mm256_cvtepi32_pd(dw));
+        let n1 = _mm256_mul_pd(_mm256_mul_pd(awf, duf), _mm256_set1_pd(-f64::from(1u32 << scale_bits)));
+        let span = (1u64 << (root_bits + SNAP_BITS + scale_bits)) as f64;
+        let n2 = _mm256_add_pd(n1, _mm256_mul_pd(duf, _mm256_set1_pd(span)));
+        macro_rules! floor_div {
+            ($n:expr) => {{
+                let n = $n;
+                let q = _mm256_floor_pd(_mm256_div_pd(n, dwf));
+                let r = _mm256_sub_pd(n, _mm256_mul_pd(q, dwf));
+                let over = _mm256_cmp_pd::<_CMP_LT_OQ>(r, _mm256_setzero_pd());
+                _mm256_cvttpd_epi32(_mm256_sub_pd(q, _mm256_and_pd(over, _mm256_set1_pd(1.0))))
+            }};
+        }
+        let (q1, q2) = (floor_div!(n1), floor_div!(n2));
+        let shift = EDGE_FRAC_BITS - ROOT_V_BITS;
+        let origin = _mm256_slli_epi64::<{ (EDGE_FRAC_BITS - ROOT_V_BITS) as i32 }>(wide!(_mm_add_epi32(
+            _mm_slli_epi32::<{ (ROOT_V_BITS - SNAP_BITS) as i32 }>(au),
+            q1,
+        )));
+        let slope = _mm256_sll_epi64(wide!(_mm_sub_epi32(q2, q1)), _mm_cvtsi32_si128((shift - root_bits) as i32));
+        // Out of the lanes: one store per register, the fields read back.
+        let mut lanes64 = [[0i64; 4]; 5];
+        for (slot, v) in lanes64.iter_mut().zip([origin, slope, wide!(ca), wide!(cb), cc]) {
+            // SAFETY: `slot` is 32 bytes, a register's size (an unaligned store).
+            #[allow(unsafe_code, reason = "a store of a register into an array of its size")]
+            unsafe {
+                _mm256_storeu_si256(slot.as_mut_ptr().cast(), v);
+            }
+        }
+        let mut lanes32 = [[0i32; 4]; 6];
+        for (slot, v) in lanes32.iter_mut().zip([e0x, e0y, e1x, e1y, vertical, lr]) {
+            // SAFETY: `slot` is 16 bytes, a register's size (an unaligned store).
+            #[allow(unsafe_code, reason = "a store of a register into an array of its size")]
+            unsafe {
+                _mm_storeu_si128(slot.as_mut_ptr().cast(), v);
+            }
+        }
+        let [origin, slope, ca, cb, cc] = lanes64;
+        let [e0x, e0y, e1x, e1y, vertical, lr] = lanes32;
+        // Written into the spare capacity and the length set once (`push` wrote the
+        // length back and checked the capacity for each code).
+        out.reserve(3);
+        let len = out.len();
+        for (k, slot) in out.spare_capacity_mut()[..3].iter_mut().enumerate() {
+            slot.write(Self {
+                tg: if vertical[k] != 0 { Tg::Vertical } else { Tg::Horizontal },
+                lr: lr[k] != 0,
+                origin: EdgeCoord(origin[k]),
+                slope: EdgeCoord(slope[k]),
+                exact: ExactLine { a: ca[k], b: cb[k], c: cc[k], ends: [(e0x[k], e0y[k]), (e1x[k], e1y[k])] },
+                exact32: true,
+            });
+        }
+        // SAFETY: the three slots after `len` were reserved and are written above.
+        unsafe {
+            out.set_len(len + 3);
+        }
+        true
+    }
+
     /// A triangle's three codes when it lies within [`fast_bounds`] (then `true`;
     /// else `false`, nothing appended): the bounds tested on a fixed-size array,
     /// the three codes straight-line, each appended as soon as it is made (after
@@ -432,9 +623,14 @@ mod tests {
     fn coordinate() -> impl proptest::strategy::Strategy<Value = i32> {
         use proptest::prelude::*;
         let edge = 1i32 << FAST_COORD_BITS;
+        let float = 1i32 << FLOAT_COORD_BITS;
         const FAR: i32 = 1 << 30;
         prop_oneof![
             -64i32..64,
+            (float - 300)..(float + 300),
+            (-float - 300)..(-float + 300),
+            Just(float - 1),
+            Just(-float),
             -(4 << SNAP_BITS)..(8192 << SNAP_BITS),
             (edge - 300)..(edge + 300),
             (-edge - 300)..(-edge + 300),
@@ -501,6 +697,105 @@ mod tests {
                 proptest::prop_assert_eq!(&got[1..], &want[..]);
             }
         }
+    }
+
+    /// [`EdgeCode::push_triangle_avx2`]'s codes of `pts` (`None` where it declines
+    /// the triangle), or `None` without AVX2.
+    fn triangle_avx2(pts: [(ScreenFx, ScreenFx); 3], inside: bool, root_side: u32) -> Option<Vec<EdgeCode>> {
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            let mut got = vec![EdgeCode::new_general(pts[0], pts[1], inside, 4).unwrap_or(DUMMY)];
+            // SAFETY: AVX2 was detected just above.
+            #[allow(unsafe_code, reason = "the AVX2 path under test, after detection")]
+            let taken = unsafe { EdgeCode::push_triangle_avx2(pts, inside, root_side, &mut got) };
+            assert_eq!(got.len(), if taken { 4 } else { 1 }, "appends three codes or none");
+            return taken.then(|| got[1..].to_vec());
+        }
+        None
+    }
+
+    /// Any code (what [`triangle_avx2`] puts before the appended ones).
+    const DUMMY: EdgeCode = EdgeCode {
+        tg: Tg::Horizontal,
+        lr: false,
+        origin: EdgeCoord(1),
+        slope: EdgeCoord(2),
+        exact: ExactLine { a: 3, b: 4, c: 5, ends: [(6, 7), (8, 9)] },
+        exact32: false,
+    };
+
+    /// The definition's codes of the triangle `pts`, or `None` if two consecutive
+    /// points are equal.
+    fn triangle_plain(pts: [(ScreenFx, ScreenFx); 3], inside: bool, root_side: u32) -> Option<Vec<EdgeCode>> {
+        (0..3).map(|i| EdgeCode::new_general(pts[i], pts[(i + 1) % 3], inside, root_side)).collect()
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(50_000))]
+
+        /// [`EdgeCode::push_triangle_avx2`] gives the definition's codes, in order,
+        /// wherever it takes a triangle (random and extreme corners around its
+        /// bounds, every root level and one beyond), and takes every triangle of
+        /// distinct points within its bounds.
+        #[test]
+        fn push_triangle_avx2_is_the_plain_definition(
+            xs in proptest::array::uniform3(coordinate()),
+            ys in proptest::array::uniform3(coordinate()),
+            near in proptest::prelude::any::<(bool, [i8; 4])>(),
+            inside in proptest::prelude::any::<bool>(),
+            level in 0u32..=MAX_ROOT_LEVEL + 1,
+        ) {
+            let root_side = 4u32 << level;
+            let (mut xs, mut ys) = (xs, ys);
+            if near.0 {
+                // Small triangles (equal points and 45-degree ties among them).
+                for k in 1..3 {
+                    xs[k] = xs[0].saturating_add(i32::from(near.1[2 * k - 2] >> 4));
+                    ys[k] = ys[0].saturating_add(i32::from(near.1[2 * k - 1] >> 4));
+                }
+            }
+            let pts = [0, 1, 2].map(|i| (ScreenFx(xs[i]), ScreenFx(ys[i])));
+            let within = xs.iter().chain(&ys).all(|&c| (c ^ (c >> 31)) >> FLOAT_COORD_BITS == 0)
+                && level <= MAX_ROOT_LEVEL;
+            let want = triangle_plain(pts, inside, root_side);
+            if let Some(got) = triangle_avx2(pts, inside, root_side) {
+                proptest::prop_assert_eq!(Some(got), want);
+            } else if cfg!(target_arch = "x86_64") && std::is_x86_feature_detected!("avx2") {
+                proptest::prop_assert!(!within || want.is_none(), "declined {:?}", pts);
+            }
+        }
+    }
+
+    /// [`EdgeCode::push_triangle_avx2`] on every triangle whose corners take the
+    /// extreme coordinates of its bounds and their neighbours (where the
+    /// numerators, quotients and products of its float divisions are largest), at
+    /// the largest and smallest root sides.
+    #[test]
+    fn push_triangle_avx2_at_its_bounds() {
+        let m = 1i32 << FLOAT_COORD_BITS;
+        let values = [-m, -m + 1, -m + 2, -1, 0, 1, m - 3, m - 2, m - 1];
+        let mut taken = 0;
+        for i in 0..values.len().pow(6) {
+            let mut k = i;
+            let mut c = [0i32; 6];
+            for v in &mut c {
+                *v = values[k % values.len()];
+                k /= values.len();
+            }
+            let pts =
+                [(ScreenFx(c[0]), ScreenFx(c[1])), (ScreenFx(c[2]), ScreenFx(c[3])), (ScreenFx(c[4]), ScreenFx(c[5]))];
+            for (inside, level) in [(i % 2 == 0, MAX_ROOT_LEVEL), (i % 2 == 1, 0)] {
+                let want = triangle_plain(pts, inside, 4 << level);
+                match triangle_avx2(pts, inside, 4 << level) {
+                    Some(got) => {
+                        assert_eq!(Some(got), want, "{pts:?}");
+                        taken += 1;
+                    }
+                    None => assert!(want.is_none() || !std::is_x86_feature_detected!("avx2"), "{pts:?}"),
+                }
+            }
+        }
+        assert!(taken > 500_000 || !std::is_x86_feature_detected!("avx2"), "{taken}");
     }
 
     #[test]
