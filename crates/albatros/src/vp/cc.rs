@@ -62,7 +62,7 @@ use super::texture::MapAvx2;
 use super::texture::{TextureMap, TextureMaps, LANES};
 #[cfg(target_arch = "x86_64")]
 use super::vb::F1Avx2;
-use super::vb::VideoBuffer;
+use super::vb::{FusedF1, VideoBuffer};
 use crate::frame::{FracLin, FrameList, FramePolygon, PolyTexture};
 use crate::model::stats::Counters;
 
@@ -247,8 +247,10 @@ impl<'a> ColorComputers<'a> {
     /// [`Self::shade`], then the VB's F1 of the cell's colours
     /// ([`VideoBuffer::accumulate`]). With AVX2 (not AVX-512) and the VB's 8-bit code,
     /// both in one function ([`PolyAvx2::shade_avx2`] with its `f1`): no call, dispatch or set-up of
-    /// F1 per cell. The same colours and words. Inlined into its caller, the VP's
-    /// loop over cells: its own call had cost ~46 instructions a cell (saved
+    /// F1 per cell: `fused` is [`VideoBuffer::fused_f1`], found once a frame (per
+    /// cell, the features and F1's registers looked up again had cost ~20
+    /// instructions a cell). The same colours and words. Inlined into its caller,
+    /// the VP's loop over cells: its own call had cost ~46 instructions a cell (saved
     /// registers, the features found again; default colour + VB 148.3 → 145.1 M,
     /// terrain 226.5 → 220.4 M).
     #[inline(always)]
@@ -259,23 +261,24 @@ impl<'a> ColorComputers<'a> {
         out: &mut CellColors,
         counters: &mut Counters,
         vb: &mut VideoBuffer,
+        fused: Option<FusedF1>,
     ) {
         #[cfg(target_arch = "x86_64")]
-        if !std::is_x86_feature_detected!("avx512f") {
-            if let Some(mut f1) = vb.f1_avx2() {
-                // SAFETY: `prepared_avx2` and `shade_avx2` only need AVX2, which the
-                // processor has (`f1_avx2` is `Some` only then).
-                #[allow(unsafe_code, reason = "calls of functions compiled for AVX2, after detection")]
-                unsafe {
-                    self.prepared_avx2(poly).shade_avx2(vis, out, Some(&mut f1))
-                };
-                if STATS {
-                    let visible = crate::model::stats::visible_pixels(&vis.sets);
-                    counters.count_cc_cell(visible, self.drawn_texture(poly));
-                }
-                return;
+        if let Some(mut f1) = fused.and_then(|fused| vb.f1_avx2(fused)) {
+            // SAFETY: `prepared_avx2` and `shade_avx2` only need AVX2, which the
+            // processor has (a `FusedF1` is made only then).
+            #[allow(unsafe_code, reason = "calls of functions compiled for AVX2, after detection")]
+            unsafe {
+                self.prepared_avx2(poly).shade_avx2(vis, out, Some(&mut f1))
+            };
+            if STATS {
+                let visible = crate::model::stats::visible_pixels(&vis.sets);
+                counters.count_cc_cell(visible, self.drawn_texture(poly));
             }
+            return;
         }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = fused;
         self.shade::<STATS>(poly, vis, out, counters);
         vb.accumulate(vis, out);
     }
@@ -1123,7 +1126,14 @@ mod tests {
             }
             let mut counters = Counters::new(9);
             let mut colors = CellColors::splat(unset);
-            cc.shade_accumulate::<false>(&poly, &vis, &mut colors, &mut counters, &mut fused);
+            let fused_f1 = fused.fused_f1();
+            #[cfg(target_arch = "x86_64")]
+            assert_eq!(
+                fused_f1.is_some(),
+                std::is_x86_feature_detected!("avx2") && !std::is_x86_feature_detected!("avx512f"),
+                "F1 runs inside the AVX2 colour computers exactly when they run"
+            );
+            cc.shade_accumulate::<false>(&poly, &vis, &mut colors, &mut counters, &mut fused, fused_f1);
             cc.shade::<false>(&poly, &vis, &mut colors, &mut counters);
             apart.accumulate(&vis, &colors);
             for i in 0..16 {

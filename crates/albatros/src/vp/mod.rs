@@ -174,8 +174,10 @@ impl VideoProcessor {
         let mut colors = cc::CellColors::default();
         let mut inner = Counters::new(self.gq.root_level);
         let vb = &mut self.vb;
-        // The background's colour encoded once for the frame.
+        // The background's colour encoded once for the frame, and whether F1 runs
+        // inside the colour computers, found once.
         let background = vb.prepare_flat(frame.background);
+        let fused = vb.fused_f1();
         // The last polygon seen (its stretch and index there) and its one colour,
         // if it has one ([`ColorComputers::flat_color`]).
         let mut flat: Option<((usize, usize), Option<Vec3>)> = None;
@@ -214,7 +216,7 @@ impl VideoProcessor {
                         }
                     }
                     // The VB's writes are counted once per frame (`run`).
-                    cc.shade_accumulate::<STATS>(poly, vis, &mut colors, &mut inner, vb);
+                    cc.shade_accumulate::<STATS>(poly, vis, &mut colors, &mut inner, vb, fused);
                 }
                 None => vb.accumulate_prepared(vis, &background),
             },

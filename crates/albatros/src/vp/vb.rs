@@ -1532,17 +1532,41 @@ impl F1Avx2<'_> {
     }
 }
 
+/// That the VB's F1 can run inside the AVX2 colour computers ([`F1Avx2`]), found
+/// once a frame ([`VideoBuffer::fused_f1`]) rather than per cell (the processor's
+/// features and the 8-bit scale's registers looked up again for every cell had cost
+/// ~20 instructions a cell), with the 8-bit scale's registers.
+#[derive(Clone, Copy)]
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code, reason = "made only on x86-64"))]
+pub struct FusedF1 {
+    #[cfg(target_arch = "x86_64")]
+    regs: &'static F1Log8,
+}
+
 impl VideoBuffer {
-    /// The VB's F1 for the AVX2 colour computers ([`F1Avx2`]) when it holds the 8-bit
-    /// code and the processor has AVX2 (the same words as [`Self::accumulate`]).
+    /// [`FusedF1`] when the VB holds the 8-bit code and the processor has AVX2 and
+    /// not AVX-512 (whose colour computers hand their cells to [`Self::accumulate`]).
+    #[inline]
+    pub fn fused_f1(&self) -> Option<FusedF1> {
+        #[cfg(target_arch = "x86_64")]
+        if matches!(self.memory, Memory::Log8 { .. })
+            && std::is_x86_feature_detected!("avx2")
+            && !std::is_x86_feature_detected!("avx512f")
+        {
+            return Some(FusedF1 { regs: F1Log8::get() });
+        }
+        None
+    }
+
+    /// The VB's F1 for the AVX2 colour computers ([`F1Avx2`]), found possible by
+    /// [`Self::fused_f1`] (the same words as [`Self::accumulate`]); `None` if the VB
+    /// no longer holds the 8-bit code.
     #[cfg(target_arch = "x86_64")]
     #[inline]
-    pub(crate) fn f1_avx2(&mut self) -> Option<F1Avx2<'_>> {
+    pub(crate) fn f1_avx2(&mut self, fused: FusedF1) -> Option<F1Avx2<'_>> {
         let width = self.width as usize;
         match &mut self.memory {
-            Memory::Log8 { codes, .. } if std::is_x86_feature_detected!("avx2") => {
-                Some(F1Avx2 { codes, width, regs: F1Log8::get() })
-            }
+            Memory::Log8 { codes, .. } => Some(F1Avx2 { codes, width, regs: fused.regs }),
             _ => None,
         }
     }
