@@ -1467,6 +1467,17 @@ mod tests {
     /// A test triangle: its edges, pixel box and vertices in snapped units.
     type Triangle = (Vec<EdgeCode>, [u32; 4], [(i64, i64); 3]);
 
+    /// Marsaglia's xorshift64 from `state`: `next(n)` is a deterministic number in
+    /// `0..n`, so that failures reproduce.
+    fn xorshift(mut state: u64) -> impl FnMut(u64) -> u64 {
+        move |n| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state % n
+        }
+    }
+
     /// Triangle `k` of the descent tests on a `SIDE`-pixel square screen (`root_side`
     /// the root cell's side), vertices drawn by `next`: its edges, pixel box as the VP
     /// forms it, and vertices in snapped units; `None` for a degenerate one.
@@ -1529,13 +1540,7 @@ mod tests {
         const SIDE: u32 = 256;
         let mut gq = CellProcessors::new(SIDE, SIDE, MaskLevels::NONE);
         let root_side = gq.side(0);
-        let mut state = 0x2545_F491_4F6C_DD1D_u64;
-        let mut next = move |n: u64| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state % n
-        };
+        let mut next = xorshift(0x2545_F491_4F6C_DD1D_u64);
         let (mut checked, mut dropped, mut sized, mut stray) = (0, 0, 0, 0);
         for k in 0..3000 {
             let Some((edges, bbox, p)) = random_triangle(k, root_side, &mut next) else {
@@ -1643,13 +1648,7 @@ mod tests {
         };
         let (mut off, mut on, mut filling) = (new(), new(), new());
         let root_side = off.side(0);
-        let mut state = 0x9E37_79B9_7F4A_7C15_u64;
-        let mut next = move |n: u64| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state % n
-        };
+        let mut next = xorshift(0x9E37_79B9_7F4A_7C15_u64);
         let mut counters = Counters::new(off.root_level);
         let mut reached = 0;
         for k in 0..3000 {
@@ -1699,13 +1698,7 @@ mod tests {
             MaskLevels(1 << 1 | 1 << 5),
             MaskLevels::mode_i(6),
         ];
-        let mut state = 0x2545_F491_4F6C_DD1D_u64;
-        let mut next = move |n: u64| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state % n
-        };
+        let mut next = xorshift(0x2545_F491_4F6C_DD1D_u64);
         for (i, &masks) in sets.iter().enumerate() {
             for counting in [false, true] {
                 let mut gq = CellProcessors::new(w, h, masks);
