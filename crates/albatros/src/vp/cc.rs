@@ -493,24 +493,14 @@ impl<'a> PolyAvx2<'a> {
                 b_dy[half][i] = _mm256_mul_ps(_mm256_set1_ps(f[i].b), dy);
             }
         }
-        let splat3 = |c: Vec3| c.to_array().map(|c| [c; AVX2_LANES]);
-        // (Loops, not `map` closures over intrinsics, which need the target feature.)
-        let load3 = |c: [[f32; AVX2_LANES]; 3]| {
-            let mut v = [_mm256_setzero_ps(); 3];
-            for (v, c) in v.iter_mut().zip(&c) {
-                // SAFETY: `c` is 8 `f32`, the 32 bytes the load reads.
-                #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
-                let loaded = unsafe { _mm256_loadu_ps(c.as_ptr()) };
-                *v = loaded;
-            }
-            v
-        };
+        // A colour's components, each in every lane.
+        let splat3 = |c: Vec3| c.to_array().map(|c| _mm256_set1_ps(c));
         let texture = drawn.map(|(t, map)| TextureAvx2 {
             map: map.avx2(),
             footprint_scale: _mm256_set1_ps(cc.footprint_scale),
             par: _mm256_set1_ps(t.par),
-            color1: load3(splat3(t.color1)),
-            color2: load3(splat3(t.color2)),
+            color1: splat3(t.color1),
+            color2: splat3(t.color2),
         });
         Self {
             poly,
@@ -520,8 +510,8 @@ impl<'a> PolyAvx2<'a> {
             a_dx,
             b_dy,
             texture,
-            color: load3(splat3(poly.color)),
-            fog: load3(splat3(cc.fog_color)),
+            color: splat3(poly.color),
+            fog: splat3(cc.fog_color),
             inv_visibility: _mm256_set1_ps(cc.inv_visibility),
             fogged: cc.inv_visibility != 0.0,
             rom: TacRom::get(),

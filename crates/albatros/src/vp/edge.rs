@@ -425,6 +425,8 @@ impl EdgeCode {
                 exact32: true,
             });
         }
+        // (Written in place rather than by `extend` of the three, which was not
+        // inlined here: `many`'s GP 990 -> 1152 M instructions.)
         // SAFETY: the three slots after `len` were reserved and are written above.
         unsafe {
             out.set_len(len + 3);

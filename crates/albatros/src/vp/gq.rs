@@ -766,8 +766,9 @@ impl CellProcessors {
 
     /// Whether the marks are closed downward over the levels in use (see
     /// [`Self::covered`]): every marked cell of a level in use has every descendant
-    /// marked on each deeper level in use. For tests.
-    pub fn marks_closed_downward(&self) -> bool {
+    /// marked on each deeper level in use.
+    #[cfg(test)]
+    fn marks_closed_downward(&self) -> bool {
         let in_use: Vec<u32> = (1..=self.root_level).filter(|&k| self.masks.has(k)).collect();
         for (i, &k) in in_use.iter().enumerate() {
             let m = &self.memories[k as usize];

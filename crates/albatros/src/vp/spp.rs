@@ -514,9 +514,9 @@ struct OwnedLines {
 impl OwnedLines {
     /// Cell `(cx, cy)` as a frame starts: its pixels off the screen or outside the
     /// share pre-masked (all 16 subpixels set).
-    fn cleared_cell(&self, cx: usize, cy: usize) -> [u16; 16] {
+    fn cleared_cell(&self, cx: usize, cy: usize) -> Words16 {
         let (columns, rows) = (self.columns[cx], self.rows[cy]);
-        std::array::from_fn(|i| if columns >> (i & 3) & rows >> (i >> 2) & 1 != 0 { 0 } else { FULL })
+        Words16(std::array::from_fn(|i| if columns >> (i & 3) & rows >> (i >> 2) & 1 != 0 { 0 } else { FULL }))
     }
 
     /// The open pixels (on the screen and in the share): open columns times open rows.
@@ -575,10 +575,10 @@ impl SubpixelProcessors {
                     for &cx in &changed {
                         let c = cy * self.stride + cx;
                         let cell = lines.cleared_cell(cx, cy);
-                        self.cleared[c] = Words16(cell);
+                        self.cleared[c] = cell;
                         if self.clean {
                             // The rest of the memory is in its cleared state already.
-                            self.masks[c] = Words16(cell);
+                            self.masks[c] = cell;
                         }
                     }
                 }
@@ -588,7 +588,7 @@ impl SubpixelProcessors {
             _ => {
                 let lines = self.owned_lines();
                 self.cleared = (0..self.rows * self.stride)
-                    .map(|c| Words16(lines.cleared_cell(c % self.stride, c / self.stride)))
+                    .map(|c| lines.cleared_cell(c % self.stride, c / self.stride))
                     .collect();
                 self.open_pixels = lines.open_pixels();
                 self.cleared_share = Some(self.share);
