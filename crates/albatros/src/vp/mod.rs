@@ -24,7 +24,7 @@ use std::sync::Arc;
 
 use glam::Vec3;
 
-use crate::frame::FrameList;
+use crate::frame::{FrameList, FramePolygon};
 use crate::model::stats::Counters;
 use cc::ColorComputers;
 use gq::{CellProcessors, GqPolygon, MaskLevels};
@@ -168,61 +168,34 @@ impl VideoProcessor {
         // what is left, so each pixel's mask goes from empty to full), and the first
         // write replaces what the pixel held. Pixels outside the share are never
         // read out of this VP.
-        // The colour computers' registers, loaded again at each stretch (its own
-        // texture set-ups).
-        let mut cc = ColorComputers::new(frame, &self.textures);
-        let mut colors = cc::CellColors::default();
-        let mut inner = Counters::new(self.gq.root_level);
         let vb = &mut self.vb;
         // The background's colour encoded once for the frame, and whether F1 runs
         // inside the colour computers, found once.
         let background = vb.prepare_flat(frame.background);
         let fused = vb.fused_f1();
-        // The last polygon seen (its stretch and index there) and its one colour,
-        // if it has one ([`ColorComputers::flat_color`]).
-        let mut flat: Option<((usize, usize), Option<Vec3>)> = None;
         let textures = &*self.textures;
-        let mut stretch = 0;
+        let mut sink = Colouring::<STATS, STRETCHES> {
+            cc: ColorComputers::new(frame, textures),
+            colors: cc::CellColors::default(),
+            inner: Counters::new(self.gq.root_level),
+            vb,
+            background,
+            fused,
+            textures,
+            stretches,
+            stretch: 0,
+            kind: Kind::None,
+        };
         Self::run::<STATS>(
             &mut self.gq,
             &mut self.spp,
             &mut self.counters,
             &mut self.column_work,
             stretches,
-            &mut |poly, vis| match poly {
-                Some((s, p)) => {
-                    // With one list, `s` is 0.
-                    let s = if STRETCHES { s } else { 0 };
-                    if STRETCHES && s != stretch {
-                        stretch = s;
-                        cc = ColorComputers::new(&stretches[s], textures);
-                    }
-                    let poly = &stretches[s].polygons[p];
-                    // A polygon of one colour goes to the VB as the background does,
-                    // with no work per pixel in the CC. (Not when counting: the counters
-                    // count the CC's pixels as the machine colours them.)
-                    if !STATS {
-                        let color = match flat {
-                            Some((q, color)) if q == (s, p) => color,
-                            _ => {
-                                let color = cc.flat_color(poly);
-                                flat = Some(((s, p), color));
-                                color
-                            }
-                        };
-                        if let Some(color) = color {
-                            vb.accumulate_flat(vis, color);
-                            return;
-                        }
-                    }
-                    // The VB's writes are counted once per frame (`run`).
-                    cc.shade_accumulate::<STATS>(poly, vis, &mut colors, &mut inner, vb, fused);
-                }
-                None => vb.accumulate_prepared(vis, &background),
-            },
+            &mut sink,
         );
         if STATS {
-            self.counters.add(&inner);
+            self.counters.add(&sink.inner);
         }
     }
 
@@ -230,15 +203,14 @@ impl VideoProcessor {
     /// units and the video buffer left out: for timing the stages apart.
     pub fn raster(&mut self, frame: &FrameList) -> u64 {
         let mut visible = 0u64;
+        let mut count = EachCell::new(|_, vis: &spp::Visible| visible += u64::from(vis.any()));
         Self::run::<false>(
             &mut self.gq,
             &mut self.spp,
             &mut self.counters,
             &mut self.column_work,
             std::slice::from_ref(frame),
-            &mut |_, vis| {
-                visible += u64::from(vis.any());
-            },
+            &mut count,
         );
         visible
     }
@@ -257,7 +229,7 @@ impl VideoProcessor {
             &mut counters,
             &mut self.column_work,
             std::slice::from_ref(frame),
-            &mut |poly, vis| {
+            &mut EachCell::new(|poly, vis: &spp::Visible| {
                 let Some((_, p)) = poly else { return };
                 for (i, &set) in vis.sets.iter().enumerate() {
                     let (x, y) = (vis.px as usize + (i & 3), vis.py as usize + (i >> 2));
@@ -267,7 +239,7 @@ impl VideoProcessor {
                         }
                     }
                 }
-            },
+            }),
         );
         owner
     }
@@ -305,16 +277,17 @@ impl VideoProcessor {
     }
 
     /// The VP's pipeline over a frame: BP, GQ descent, SPP; every visible fragment
-    /// goes to `sink` with its polygon's stretch and index there (`None`: the
-    /// background, last). The frame is `stretches`, their polygons one list after
-    /// another (with one list, the index is the polygon's in the frame list).
+    /// goes to `sink` ([`Sink::cell`], after [`Sink::polygon`] named its polygon
+    /// by its stretch and index there; [`Sink::background`]'s last). The frame is
+    /// `stretches`, their polygons one list after another (with one list, the
+    /// index is the polygon's in the frame list).
     fn run<const STATS: bool>(
         gq: &mut CellProcessors,
         spp: &mut SubpixelProcessors,
         counters: &mut Counters,
         work: &mut [u32],
         stretches: &[FrameList],
-        sink: &mut impl FnMut(Option<(usize, usize)>, &spp::Visible),
+        sink: &mut impl Sink,
     ) {
         gq.clear();
         spp.clear();
@@ -349,6 +322,7 @@ impl VideoProcessor {
                 }
                 let opaque = poly.transparency == 0;
                 let gp = GqPolygon { edges, opaque, bbox };
+                sink.polygon(index);
                 let mut fragment = |frag: gq::Fragment| {
                     if !STATS && frag.active.is_empty() {
                         // With counting off, cells no edge crosses (wholly inside, up to
@@ -368,7 +342,7 @@ impl VideoProcessor {
                             *column += work::INSIDE_CELL;
                             if vis.any() {
                                 *column += work::VISIBLE_CELL;
-                                sink(Some(index), &vis);
+                                sink.cell(&vis);
                             }
                         }
                         return;
@@ -381,7 +355,7 @@ impl VideoProcessor {
                     *column += work::EDGE_CELL;
                     if vis.any() {
                         *column += work::VISIBLE_CELL;
-                        sink(Some(index), &vis);
+                        sink.cell(&vis);
                     }
                 };
                 if STATS {
@@ -424,7 +398,7 @@ impl VideoProcessor {
                             background_firsts += u64::from(vis.first.count_ones());
                         }
                         if vis.any() {
-                            sink(None, &vis);
+                            sink.background(&vis);
                         }
                     }
                     cx = end;
@@ -445,6 +419,127 @@ impl VideoProcessor {
             inner.color.read_modify_writes += inner.spp.pixels_visible - firsts;
             counters.add(&inner);
         }
+    }
+}
+
+/// Where [`VideoProcessor::run`] hands the visible fragments: the colour units and
+/// the VB when rendering ([`Colouring`]), a recorder or a count otherwise
+/// ([`EachCell`]).
+trait Sink {
+    /// The cells that come next, up to the next call, are of polygon `index` (its
+    /// stretch and its index there). Once per polygon, before its descent: what
+    /// depends on the polygon alone is settled here, not per cell.
+    fn polygon(&mut self, index: (usize, usize));
+    /// A visible fragment of the last polygon named.
+    fn cell(&mut self, vis: &spp::Visible);
+    /// A visible fragment of the background (after every polygon).
+    fn background(&mut self, vis: &spp::Visible);
+}
+
+/// A [`Sink`] from a function of the polygon (`None`: the background) and the
+/// fragment.
+struct EachCell<F> {
+    index: Option<(usize, usize)>,
+    each: F,
+}
+
+impl<F: FnMut(Option<(usize, usize)>, &spp::Visible)> EachCell<F> {
+    fn new(each: F) -> Self {
+        Self { index: None, each }
+    }
+}
+
+impl<F: FnMut(Option<(usize, usize)>, &spp::Visible)> Sink for EachCell<F> {
+    fn polygon(&mut self, index: (usize, usize)) {
+        self.index = Some(index);
+    }
+
+    fn cell(&mut self, vis: &spp::Visible) {
+        (self.each)(self.index, vis);
+    }
+
+    fn background(&mut self, vis: &spp::Visible) {
+        (self.each)(None, vis);
+    }
+}
+
+/// What [`Colouring`] does with the cells of the polygon named last.
+#[derive(Clone, Copy)]
+enum Kind<'a> {
+    /// No polygon named yet.
+    None,
+    /// Not yet known whether the polygon has one colour (found at its first
+    /// visible cell: most polygons have none).
+    Unknown(&'a FramePolygon),
+    /// A polygon of one colour: to the VB as the background goes, with no work per
+    /// pixel in the CC.
+    Flat(Vec3),
+    /// Coloured by the CC pixel by pixel.
+    Shaded(&'a FramePolygon),
+}
+
+/// The [`Sink`] of [`VideoProcessor::render_inner`]: the colour computers and the
+/// VB. (What depends on the polygon alone, its stretch's colour computers, the
+/// polygon's record and whether it has one colour, is settled once per polygon:
+/// as a closure called per cell with the polygon's index, it took some 60
+/// instructions a cell.)
+struct Colouring<'a, 'v, const STATS: bool, const STRETCHES: bool> {
+    cc: ColorComputers<'a>,
+    colors: cc::CellColors,
+    inner: Counters,
+    vb: &'v mut VideoBuffer,
+    /// The background's colour, encoded once for the frame.
+    background: vb::FlatColor,
+    /// Whether F1 runs inside the colour computers, found once.
+    fused: Option<vb::FusedF1>,
+    textures: &'a TextureMaps,
+    stretches: &'a [FrameList],
+    /// The stretch of `cc`.
+    stretch: usize,
+    kind: Kind<'a>,
+}
+
+impl<const STATS: bool, const STRETCHES: bool> Sink for Colouring<'_, '_, STATS, STRETCHES> {
+    #[inline]
+    fn polygon(&mut self, (s, p): (usize, usize)) {
+        // With one list, `s` is 0.
+        let s = if STRETCHES { s } else { 0 };
+        if STRETCHES && s != self.stretch {
+            // The colour computers' registers, loaded again at each stretch (its
+            // own texture set-ups).
+            self.stretch = s;
+            self.cc = ColorComputers::new(&self.stretches[s], self.textures);
+        }
+        let poly = &self.stretches[s].polygons[p];
+        // (Not when counting: the counters count the CC's pixels as the machine
+        // colours them.)
+        self.kind = if STATS { Kind::Shaded(poly) } else { Kind::Unknown(poly) };
+    }
+
+    #[inline(always)]
+    fn cell(&mut self, vis: &spp::Visible) {
+        let poly = match self.kind {
+            Kind::Shaded(poly) => poly,
+            Kind::Flat(color) => return self.vb.accumulate_flat(vis, color),
+            Kind::Unknown(poly) => match self.cc.flat_color(poly) {
+                Some(color) => {
+                    self.kind = Kind::Flat(color);
+                    return self.vb.accumulate_flat(vis, color);
+                }
+                None => {
+                    self.kind = Kind::Shaded(poly);
+                    poly
+                }
+            },
+            Kind::None => unreachable!("a cell before its polygon"),
+        };
+        // The VB's writes are counted once per frame (`run`).
+        self.cc.shade_accumulate::<STATS>(poly, vis, &mut self.colors, &mut self.inner, self.vb, self.fused);
+    }
+
+    #[inline]
+    fn background(&mut self, vis: &spp::Visible) {
+        self.vb.accumulate_prepared(vis, &self.background);
     }
 }
 

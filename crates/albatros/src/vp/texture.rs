@@ -397,7 +397,13 @@ impl MapAvx2<'_> {
     #[inline]
     pub(crate) fn sample2_avx2(&self, u: [__m256; 2], v: [__m256; 2], footprint: [__m256; 2]) -> [__m256; 2] {
         let level = [self.level_avx2(u[0], v[0], footprint[0]), self.level_avx2(u[1], v[1], footprint[1])];
-        let fine = level.each_ref().map(|l| self.bilinear_avx2(l.guess, l.fu, l.fv));
+        // (Both look-ups written out, not an array's `map` of a closure: the closure
+        // compiled out of line whenever the code units were laid out differently,
+        // +9.7 M instructions on default.)
+        let fine = [
+            self.bilinear_avx2(level[0].guess, level[0].fu, level[0].fv),
+            self.bilinear_avx2(level[1].guess, level[1].fu, level[1].fv),
+        ];
         let guessed = _mm256_and_si256(
             _mm256_cmpeq_epi32(level[0].guess, level[0].k),
             _mm256_cmpeq_epi32(level[1].guess, level[1].k),
@@ -405,7 +411,11 @@ impl MapAvx2<'_> {
         let (k, fine) = if _mm256_movemask_epi8(guessed) == -1 {
             ([level[0].guess, level[1].guess], fine)
         } else {
-            ([level[0].k, level[1].k], level.each_ref().map(|l| self.bilinear_avx2(l.k, l.fu, l.fv)))
+            let exact = [
+                self.bilinear_avx2(level[0].k, level[0].fu, level[0].fv),
+                self.bilinear_avx2(level[1].k, level[1].fu, level[1].fv),
+            ];
+            ([level[0].k, level[1].k], exact)
         };
         let (kr0, kr1) = (level[0].kr, level[1].kr);
         let zero = _mm256_setzero_ps();
