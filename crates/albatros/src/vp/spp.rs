@@ -336,7 +336,9 @@ macro_rules! vertex_words_avx2_body {
             let mut w = w;
             // `greater = !less`; LR = 0 keeps the other side.
             let flip: u16 = if e.lr { 0 } else { u16::MAX };
-            let mut left = near;
+            // In 32 bits: `blsr` then sets the flag the loop tests (as `u16` the
+            // compiler tested the word again).
+            let mut left = u32::from(near);
             while left != 0 {
                 let lane = left.trailing_zeros() as usize & 15;
                 left &= left - 1;
@@ -1678,37 +1680,58 @@ fn near_end_cell_at_sse41(line: &ExactLine, px: u32, py: u32, t: std::arch::x86_
 /// The vertex pixels of [`vertex_start`] in AVX2 (tested), for cells and endpoints
 /// within [`VertexWindow::fits`]: with `t` a coordinate less the cell's first widened
 /// border, pixel `d` holds it when `0 <= t - d ONE <= ONE + 2 MARGIN`, one unsigned
-/// compare of the 32-bit difference (which wraps into that range only when it is
-/// there). Each endpoint's coordinate along the words and across them, four `d` a
-/// coordinate, are one register; its lanes' sign mask gives the endpoint's lane bits
-/// (low nibble) and word bits (high nibble). About 30 instructions against some 45
-/// for the window table's way. It takes the endpoints' offsets `t`
-/// ([`end_offsets_sse2`]), made once for the test of [`near_end_cell_at_sse41`] too.
-/// Each endpoint's registers hold its x then its y (no swap by the TG), and its
-/// eight bits are turned into pixels by [`NEAR_PIXELS`]: some 16 instructions
-/// fewer a call than the swap and the products that spread the bits.
+/// compare of the difference. It takes the endpoints' offsets `t`
+/// ([`end_offsets_sse2`]), made once for the test of [`near_end_cell_at_sse41`] too,
+/// packed to 16 bits with signed saturation: a value in range (below `4 ONE + 2
+/// MARGIN`) is kept, and a saturated or far one stays out of range (its 16-bit
+/// difference, wrapped or not, is above `ONE + 2 MARGIN` as an unsigned number),
+/// so both endpoints' x and y, four `d` each, are one register of 16-bit lanes, and
+/// one byte mask gives each endpoint's lane bits (low nibble) and word bits (high
+/// nibble) in a byte: about 14 instructions against some 20 for two registers of
+/// 32-bit lanes. Each endpoint's lanes hold its x then its y (no swap by the TG),
+/// and its eight bits are turned into pixels by [`NEAR_PIXELS`]: some 16
+/// instructions fewer a call than the swap and the products that spread the bits.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,bmi1")]
 #[inline]
 fn vertex_near_avx2(t: std::arch::x86_64::__m128i, vertical: bool) -> u16 {
     use std::arch::x86_64::{
-        _mm256_castsi128_si256, _mm256_castsi256_ps, _mm256_cmpeq_epi32, _mm256_min_epu32, _mm256_movemask_ps,
-        _mm256_permutevar8x32_epi32, _mm256_set1_epi32, _mm256_setr_epi32, _mm256_sub_epi32,
+        _mm256_broadcastq_epi64, _mm256_castsi256_si128, _mm256_cmpeq_epi16, _mm256_extracti128_si256,
+        _mm256_min_epu16, _mm256_set1_epi16, _mm256_setr_epi16, _mm256_setr_epi8, _mm256_shuffle_epi8,
+        _mm256_sub_epi16, _mm_movemask_epi8, _mm_packs_epi16, _mm_packs_epi32,
     };
-    const ONE: i32 = SNAP_ONE;
-    const SPAN: i32 = SNAP_ONE + 2 * VERTEX_MARGIN;
-    let t = _mm256_castsi128_si256(t);
-    // Lanes 0-3 an endpoint's x, 4-7 its y: `t` holds x, y, x, y.
-    let first = _mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1);
-    let second = _mm256_setr_epi32(2, 2, 2, 2, 3, 3, 3, 3);
-    let steps = _mm256_setr_epi32(0, ONE, 2 * ONE, 3 * ONE, 0, ONE, 2 * ONE, 3 * ONE);
-    let bits = |index| {
-        let d = _mm256_sub_epi32(_mm256_permutevar8x32_epi32(t, index), steps);
-        let within = _mm256_cmpeq_epi32(_mm256_min_epu32(d, _mm256_set1_epi32(SPAN)), d);
-        _mm256_movemask_ps(_mm256_castsi256_ps(within)) as usize & (NEAR_BITS - 1)
-    };
+    const ONE: i16 = SNAP_ONE as i16;
+    const SPAN: i16 = (SNAP_ONE + 2 * VERTEX_MARGIN) as i16;
+    // `ax ay bx by` as 16-bit lanes 0-3, the quadword in both halves.
+    let t = _mm256_broadcastq_epi64(_mm_packs_epi32(t, t));
+    // Lanes 0-3 the first endpoint's x, 4-7 its y; 8-15 the second's.
+    let spread = _mm256_setr_epi8(
+        0, 1, 0, 1, 0, 1, 0, 1, 2, 3, 2, 3, 2, 3, 2, 3, 4, 5, 4, 5, 4, 5, 4, 5, 6, 7, 6, 7, 6, 7, 6, 7,
+    );
+    let steps = _mm256_setr_epi16(
+        0,
+        ONE,
+        2 * ONE,
+        3 * ONE,
+        0,
+        ONE,
+        2 * ONE,
+        3 * ONE,
+        0,
+        ONE,
+        2 * ONE,
+        3 * ONE,
+        0,
+        ONE,
+        2 * ONE,
+        3 * ONE,
+    );
+    let d = _mm256_sub_epi16(_mm256_shuffle_epi8(t, spread), steps);
+    let within = _mm256_cmpeq_epi16(_mm256_min_epu16(d, _mm256_set1_epi16(SPAN)), d);
+    let bits =
+        _mm_movemask_epi8(_mm_packs_epi16(_mm256_castsi256_si128(within), _mm256_extracti128_si256::<1>(within)));
     let pixels = &NEAR_PIXELS[usize::from(vertical)];
-    pixels[bits(first)] | pixels[bits(second)]
+    pixels[bits as usize & (NEAR_BITS - 1)] | pixels[bits as usize >> 8 & (NEAR_BITS - 1)]
 }
 
 /// The values of an endpoint's eight within-bits in [`vertex_near_avx2`].
