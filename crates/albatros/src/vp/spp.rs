@@ -399,7 +399,10 @@ fn vertex_words_far(
 /// the transpose, which no store forwarded (on Zen 3 some 12 % of the function's
 /// time stood on that one load). The columns are transposed by a byte shuffle and a
 /// dword permute ([`transpose_words`] in registers), and the code is `rows &
-/// columns`, bit `16 (4 y + x)` the pixel `(x, y)`'s set.
+/// columns`, bit `16 (4 y + x)` the pixel `(x, y)`'s set. `$vertex_exact` is a
+/// constant (the SPPs' [`SubpixelProcessors::vertex_exact`] chosen by the caller), so
+/// the loop has no test of it per edge; the row-table indices come from
+/// [`line_index_lanes_sse41`], read with no mask or bounds check.
 #[cfg(target_arch = "x86_64")]
 macro_rules! table_code_avx2_body {
     ($spp:expr, $frag:expr, $edges:expr, $vertex_exact:expr) => {{
@@ -920,7 +923,10 @@ impl SubpixelProcessors {
     /// ([`Self::apply_avx2`]). Through memory, the code (stored as 16 `u16`, the box
     /// clip's stores of odd sizes, read back as 16-byte loads) missed the store
     /// forwarding: some 20 % of `process`'s time stood on one load; and the call
-    /// chain `process` → `table_code_avx2` was two calls a fragment.
+    /// chain `process` → `table_code_avx2` was two calls a fragment. A cell beyond
+    /// [`CELL_LIMIT_32`] (none on a screen the model supports) goes to
+    /// [`Self::process_plain`], checked once a fragment rather than at every edge's
+    /// near-end test and vertex pixels.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,bmi1")]
     #[inline(never)]
