@@ -40,7 +40,7 @@ pub const FULL: u16 = 0xFFFF;
 /// descents could not start at the cells of the polygon's size
 /// ([`super::gq::CellProcessors::descend_filling`]). Two comparisons per border in
 /// hardware; here a test skips the clip for cells wholly inside the box (the AVX2
-/// step clips every fragment with no branch: [`box_lanes_avx2`]).
+/// step clips every fragment with no branch: [`box_outside_lanes_avx2`]).
 #[inline]
 pub fn box_pixels(px: u32, py: u32, bbox: [u32; 4]) -> u16 {
     let [x0, x1, y0, y1] = bbox;
@@ -191,6 +191,41 @@ fn line_index_lanes_sse2(v1: i64, slope: i64) -> std::arch::x86_64::__m128i {
     _mm_add_epi16(_mm_mullo_epi16(line, _mm_set1_epi16(ROW_Q_COUNT as i16)), _mm_srli_si128::<2>(line))
 }
 
+/// [`line_index_lanes_sse2`] for the AVX2 fragment code (SSE4.1; the same indices,
+/// tested): the clamp's lower bound folded into the rounding's constant, so that the
+/// shifted sums are `line = q - ROW_Q_MIN` (`ROW_Q_MIN 2^SHIFT` is a whole number of
+/// steps, so the floor moves by exactly `ROW_Q_MIN`), packed to 16 bits with unsigned
+/// saturation (a negative `line`, `q` below `ROW_Q_MIN`, becomes 0) and clamped above
+/// by one unsigned min: 2 instructions an edge fewer than the signed pack, two
+/// clamps and the subtraction. The indices are not masked: each is at most
+/// `(ROW_Q_COUNT - 1) (ROW_Q_COUNT + 1)`, below `ROW_ENTRIES`, and the caller reads
+/// them unchecked.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "sse4.1")]
+#[inline]
+fn line_index_lanes_sse41(v1: i64, slope: i64) -> std::arch::x86_64::__m128i {
+    use std::arch::x86_64::{
+        _mm_add_epi16, _mm_add_epi64, _mm_castps_si128, _mm_castsi128_ps, _mm_min_epu16, _mm_mullo_epi16,
+        _mm_packus_epi32, _mm_set1_epi16, _mm_set1_epi64x, _mm_set_epi64x, _mm_shuffle_ps, _mm_srli_epi64,
+        _mm_srli_si128,
+    };
+    const SHIFT: i32 = (EDGE_FRAC_BITS - SPP_V_BITS) as i32;
+    // Half a step up (the rounding), then `-ROW_Q_MIN` steps (the clamp's origin).
+    const BIAS: i64 = (1 << (SHIFT - 1)) - ((ROW_Q_MIN as i64) << SHIFT);
+    let step = _mm_set1_epi64x(slope * 2);
+    let l01 = _mm_add_epi64(_mm_set_epi64x(v1 + slope, v1), _mm_set1_epi64x(BIAS));
+    let l23 = _mm_add_epi64(l01, step);
+    let l45 = _mm_add_epi64(l23, step);
+    let (l01, l23, l45) = (_mm_srli_epi64::<SHIFT>(l01), _mm_srli_epi64::<SHIFT>(l23), _mm_srli_epi64::<SHIFT>(l45));
+    const LOW_HALVES: i32 = 0b10_00_10_00;
+    let q0123 = _mm_castps_si128(_mm_shuffle_ps::<LOW_HALVES>(_mm_castsi128_ps(l01), _mm_castsi128_ps(l23)));
+    let line = _mm_min_epu16(_mm_packus_epi32(q0123, l45), _mm_set1_epi16((ROW_Q_COUNT - 1) as i16));
+    _mm_add_epi16(_mm_mullo_epi16(line, _mm_set1_epi16(ROW_Q_COUNT as i16)), _mm_srli_si128::<2>(line))
+}
+
+// What the unchecked reads of `line_index_lanes_sse41`'s indices rest on.
+const _: () = assert!((ROW_Q_COUNT - 1) * (ROW_Q_COUNT + 1) < ROW_PART_WORDS);
+
 /// The body of [`vertex_words_avx2`] as an immediately called closure, for
 /// [`SubpixelProcessors::table_code_avx2`] to expand in its own code: a closure takes
 /// the target features of the function it is written in, where `#[inline(always)]`
@@ -214,7 +249,7 @@ macro_rules! vertex_words_avx2_body {
                 return vertex_words_far(e, px, py, vertical, w);
             }
             use std::arch::x86_64::{
-                __m256i, _mm256_add_epi32, _mm256_blendv_epi8, _mm256_castps_si256, _mm256_castsi256_ps,
+                __m256i, _mm256_add_epi32, _mm256_and_si256, _mm256_blendv_epi8, _mm256_castps_si256, _mm256_castsi256_ps,
                 _mm256_castsi256_si128, _mm256_cmpgt_epi32, _mm256_cmpgt_epi64, _mm256_extracti128_si256,
                 _mm256_load_si256, _mm256_mullo_epi32, _mm256_packs_epi32, _mm256_permute4x64_epi64,
                 _mm256_set1_epi16, _mm256_set1_epi32, _mm256_set1_epi64x, _mm256_set_epi64x, _mm256_setr_epi32,
@@ -241,13 +276,15 @@ macro_rules! vertex_words_avx2_body {
                 // `2^30 + 6 * 2^27 < 2^31`, so the clamp keeps it: 32-bit lanes from the
                 // start, about 20 instructions with the check against some 45 for the
                 // 64-bit lanes below. (Every cell of `many` takes this way.)
-                let (per_lane, per_word) = (per_lane as i32, per_word as i32);
+                // The word steps by a mask rather than a product, `2 per_word` as a sum
+                // of the broadcast: 4 instructions fewer, the same numbers.
+                let (per_lane, per_word) = (_mm256_set1_epi32(per_lane as i32), _mm256_set1_epi32(per_word as i32));
                 let steps = _mm256_add_epi32(
-                    _mm256_mullo_epi32(_mm256_set1_epi32(per_lane), _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3)),
-                    _mm256_mullo_epi32(_mm256_set1_epi32(per_word), _mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1)),
+                    _mm256_mullo_epi32(per_lane, _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3)),
+                    _mm256_and_si256(per_word, _mm256_setr_epi32(0, 0, 0, 0, -1, -1, -1, -1)),
                 );
                 let t01 = _mm256_sub_epi32(_mm256_set1_epi32(-e_cell as i32), steps);
-                (t01, _mm256_sub_epi32(t01, _mm256_set1_epi32(2 * per_word)))
+                (t01, _mm256_sub_epi32(t01, _mm256_add_epi32(per_word, per_word)))
             } else {
                 // A word's four lanes a register (every term below 2^48: no overflow).
                 let lanes = _mm256_set_epi64x(3 * per_lane, 2 * per_lane, per_lane, 0);
@@ -287,10 +324,11 @@ macro_rules! vertex_words_avx2_body {
             // same numbers as the SSE2 path's rows), subpixels 0-3 and 8-11 in one register
             // and 4-7 and 12-15 in the other: each pack then keeps the subpixels' order.
             let (step_x, step_y) = (_mm256_set1_epi32((line.a * SUB) as i32), _mm256_set1_epi32((line.b * SUB) as i32));
+            // Rows 1 and 3 are rows 0 and 2 a step further (an addition, not a product).
             let columns = _mm256_mullo_epi32(step_x, _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3));
             let rows_02 = _mm256_mullo_epi32(step_y, _mm256_setr_epi32(0, 0, 0, 0, 2, 2, 2, 2));
-            let rows_13 = _mm256_mullo_epi32(step_y, _mm256_setr_epi32(1, 1, 1, 1, 3, 3, 3, 3));
-            let (offsets_02, offsets_13) = (_mm256_add_epi32(columns, rows_02), _mm256_add_epi32(columns, rows_13));
+            let offsets_02 = _mm256_add_epi32(columns, rows_02);
+            let offsets_13 = _mm256_add_epi32(offsets_02, step_y);
             // Per vertex pixel: its centres off the greater side, `offset < -E0`.
             // The words in a register, each vertex pixel's set blended into its lane (in a
             // register: sets stored as `u16` and read back as one load would miss the
@@ -298,7 +336,9 @@ macro_rules! vertex_words_avx2_body {
             let mut w = w;
             // `greater = !less`; LR = 0 keeps the other side.
             let flip: u16 = if e.lr { 0 } else { u16::MAX };
-            let mut left = near;
+            // In 32 bits: `blsr` then sets the flag the loop tests (as `u16` the
+            // compiler tested the word again).
+            let mut left = u32::from(near);
             while left != 0 {
                 let lane = left.trailing_zeros() as usize & 15;
                 left &= left - 1;
@@ -359,10 +399,13 @@ fn vertex_words_far(
 /// the transpose, which no store forwarded (on Zen 3 some 12 % of the function's
 /// time stood on that one load). The columns are transposed by a byte shuffle and a
 /// dword permute ([`transpose_words`] in registers), and the code is `rows &
-/// columns`, bit `16 (4 y + x)` the pixel `(x, y)`'s set.
+/// columns`, bit `16 (4 y + x)` the pixel `(x, y)`'s set. `$vertex_exact` is a
+/// constant (the SPPs' [`SubpixelProcessors::vertex_exact`] chosen by the caller), so
+/// the loop has no test of it per edge; the row-table indices come from
+/// [`line_index_lanes_sse41`], read with no mask or bounds check.
 #[cfg(target_arch = "x86_64")]
 macro_rules! table_code_avx2_body {
-    ($spp:expr, $frag:expr, $edges:expr) => {{
+    ($spp:expr, $frag:expr, $edges:expr, $vertex_exact:expr) => {{
         let body = |spp: &SubpixelProcessors, frag: &Fragment, edges: &[EdgeCode]| -> std::arch::x86_64::__m256i {
             use std::arch::x86_64::{
                 _mm256_and_si256, _mm256_load_si256, _mm256_or_si256, _mm256_permutevar8x32_epi32, _mm256_set1_epi64x,
@@ -376,12 +419,15 @@ macro_rules! table_code_avx2_body {
             for a in frag.active {
                 let e = &edges[a.edge as usize];
                 let vertical = e.tg == Tg::Vertical;
-                let index = line_index_lanes_sse2(a.v1.0, e.slope.0);
+                let index = line_index_lanes_sse41(a.v1.0, e.slope.0);
                 let part = if vertical { part_v } else { part_h };
                 // The edge's sets, a word per pixel line along it (LR = 0: complements).
                 // Four loads rather than a gather (`vpgatherqq`): as fast on Zen 3 in
                 // time, though counted as one instruction.
-                let word = |k: usize| part[k & (ROW_PART_WORDS - 1)] as i64;
+                // SAFETY: `line_index_lanes_sse41`'s indices are below `ROW_ENTRIES`
+                // (its clamp), within a part's `ROW_PART_WORDS`.
+                #[allow(unsafe_code, reason = "indices clamped in SIMD, which the compiler cannot see")]
+                let word = |k: usize| unsafe { *part.get_unchecked(k) } as i64;
                 let read = _mm256_set_epi64x(
                     word(_mm_extract_epi16::<3>(index) as usize),
                     word(_mm_extract_epi16::<2>(index) as usize),
@@ -396,7 +442,7 @@ macro_rules! table_code_avx2_body {
                 // The pixels of this cell near an endpoint of the edge, where the exact
                 // rule replaces the table. The endpoints' offsets from the cell serve
                 // both the test and the vertex pixels.
-                if spp.vertex_exact {
+                if $vertex_exact {
                     let offsets = end_offsets_sse2(&e.exact, frag.px, frag.py);
                     if near_end_cell_at_sse41(&e.exact, frag.px, frag.py, offsets) {
                         w = vertex_words_avx2_body!(e, frag.px, frag.py, vertical, w, offsets);
@@ -431,7 +477,7 @@ macro_rules! table_code_avx2_body {
 }
 
 /// The pixels of `pixels` (bit `4 y + x`) as 16-bit lanes of all ones, the others 0:
-/// the reference for [`box_lanes_avx2`]'s test.
+/// the reference for [`box_outside_lanes_avx2`]'s test.
 #[cfg(all(test, target_arch = "x86_64"))]
 #[target_feature(enable = "avx2")]
 #[inline]
@@ -459,38 +505,42 @@ fn pixel_lanes_avx2(pixels: u16) -> std::arch::x86_64::__m256i {
     _mm256_cmpeq_epi16(_mm256_and_si256(_mm256_set1_epi16(pixels as i16), bits), bits)
 }
 
-/// [`box_pixels`] of the cell at pixel `(px, py)` as 16-bit lanes of all ones (the
-/// pixels in the box) or 0 (tested), with no branch: 55 % of default's fragments
-/// with edges meet a border of their polygon's box, so `box_pixels`' test for a cell
-/// wholly inside went either way (and its clip cost some 45 instructions where it
-/// applied). Lanes 0-3 of the 32-bit registers are the cell's pixel columns, 4-7 its
-/// rows; pixel `i` of an axis lies in `[a, b)` when `i >= a -sat p` and `i < b -sat
-/// p` (the saturating differences of `span` in `box_pixels`, as `max(a, p) - p`),
-/// unsigned compares by `max == i`. The columns' lanes packed to 16 bits and
-/// repeated make lane `4 y + x` column `x`'s; the rows' lanes, each widened to two
-/// 16-bit lanes by the dword permute, row `y`'s.
+/// The complement of [`box_pixels`] of the cell at pixel `(px, py)`, as 16-bit lanes
+/// of all ones (the pixels outside the box) or 0, with no branch: 55 % of default's
+/// fragments with edges meet a border of their polygon's box, so `box_pixels`' test
+/// for a cell wholly inside went either way (and its clip cost some 45 instructions
+/// where it applied). Lanes 0-3 of the 32-bit registers are the cell's pixel columns,
+/// 4-7 its rows; pixel `p + i` of an axis lies in `[a, b)` when `p + i - a < b -sat a`
+/// as unsigned numbers (for `p + i < a` the difference wraps to at least `2^32 - a`,
+/// more than any `b - a`; a reversed box has no width), so a lane is outside when
+/// `max(p + i - a, width) == p + i - a`; the caller clips by `andnot`. (`box_pixels`'
+/// `span`, its saturating differences, took 4 instructions more.) The columns'
+/// lanes packed to 16 bits and repeated make lane `4 y + x` column `x`'s; the rows'
+/// lanes, each widened to two 16-bit lanes by the dword permute, row `y`'s; a pixel
+/// is outside when its column or its row is. `px + 3` and `py + 3` must not wrap (a
+/// pixel of a screen; so does `box_pixels`' `px + CELL_SIDE`).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-fn box_lanes_avx2(px: u32, py: u32, bbox: [u32; 4]) -> std::arch::x86_64::__m256i {
+fn box_outside_lanes_avx2(px: u32, py: u32, bbox: [u32; 4]) -> std::arch::x86_64::__m256i {
     use std::arch::x86_64::{
-        _mm256_and_si256, _mm256_andnot_si256, _mm256_cmpeq_epi32, _mm256_max_epu32, _mm256_packs_epi32,
+        _mm256_add_epi32, _mm256_cmpeq_epi32, _mm256_max_epu32, _mm256_or_si256, _mm256_packs_epi32,
         _mm256_permute4x64_epi64, _mm256_permutevar8x32_epi32, _mm256_setr_epi32, _mm256_sub_epi32,
     };
     let [x0, x1, y0, y1] = bbox.map(|v| v as i32);
     let (px, py) = (px as i32, py as i32);
-    let p = _mm256_setr_epi32(px, px, px, px, py, py, py, py);
-    let from = _mm256_sub_epi32(_mm256_max_epu32(_mm256_setr_epi32(x0, x0, x0, x0, y0, y0, y0, y0), p), p);
-    let to = _mm256_sub_epi32(_mm256_max_epu32(_mm256_setr_epi32(x1, x1, x1, x1, y1, y1, y1, y1), p), p);
-    let i = _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3);
-    let at_or_after = _mm256_cmpeq_epi32(_mm256_max_epu32(i, from), i);
-    let at_or_after_end = _mm256_cmpeq_epi32(_mm256_max_epu32(i, to), i);
-    let inside = _mm256_andnot_si256(at_or_after_end, at_or_after);
+    let start = _mm256_setr_epi32(x0, x0, x0, x0, y0, y0, y0, y0);
+    let end = _mm256_setr_epi32(x1, x1, x1, x1, y1, y1, y1, y1);
+    let width = _mm256_sub_epi32(_mm256_max_epu32(end, start), start);
+    let pixel =
+        _mm256_add_epi32(_mm256_setr_epi32(px, px, px, px, py, py, py, py), _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3));
+    let from_start = _mm256_sub_epi32(pixel, start);
+    let outside = _mm256_cmpeq_epi32(_mm256_max_epu32(from_start, width), from_start);
     // Quadwords 0, 1, 0, 1: the low half's columns (packed twice) in both halves.
     const LOW_HALF_TWICE: i32 = 0b01_00_01_00;
-    let columns = _mm256_permute4x64_epi64::<LOW_HALF_TWICE>(_mm256_packs_epi32(inside, inside));
-    let rows = _mm256_permutevar8x32_epi32(inside, _mm256_setr_epi32(4, 4, 5, 5, 6, 6, 7, 7));
-    _mm256_and_si256(columns, rows)
+    let columns = _mm256_permute4x64_epi64::<LOW_HALF_TWICE>(_mm256_packs_epi32(outside, outside));
+    let rows = _mm256_permutevar8x32_epi32(outside, _mm256_setr_epi32(4, 4, 5, 5, 6, 6, 7, 7));
+    _mm256_or_si256(columns, rows)
 }
 
 /// The pixels (bit `4 y + x`) whose 16-bit lane is all ones, the lanes all ones or
@@ -728,7 +778,11 @@ impl SubpixelProcessors {
         counters: &mut Counters,
     ) -> [u16; 16] {
         use std::arch::x86_64::_mm256_store_si256;
-        let code = table_code_avx2_body!(self, frag, edges);
+        let code = if self.vertex_exact {
+            table_code_avx2_body!(self, frag, edges, true)
+        } else {
+            table_code_avx2_body!(self, frag, edges, false)
+        };
         let mut out = Aligned32([0u16; 16]);
         // SAFETY: `out` is 32 bytes aligned to 32, a register's size.
         #[allow(unsafe_code, reason = "an aligned store into an array of a register's size")]
@@ -865,11 +919,14 @@ impl SubpixelProcessors {
 
     /// [`Self::process_plain`] of a table mode in AVX2, the same visible sets, mask
     /// memory and counts (tested): the code in a register ([`table_code_avx2_body`]),
-    /// clipped to the box with no branch ([`box_lanes_avx2`]), and the mask step on it
+    /// clipped to the box with no branch ([`box_outside_lanes_avx2`]), and the mask step on it
     /// ([`Self::apply_avx2`]). Through memory, the code (stored as 16 `u16`, the box
     /// clip's stores of odd sizes, read back as 16-byte loads) missed the store
     /// forwarding: some 20 % of `process`'s time stood on one load; and the call
-    /// chain `process` → `table_code_avx2` was two calls a fragment.
+    /// chain `process` → `table_code_avx2` was two calls a fragment. A cell beyond
+    /// [`CELL_LIMIT_32`] (none on a screen the model supports) goes to
+    /// [`Self::process_plain`], checked once a fragment rather than at every edge's
+    /// near-end test and vertex pixels.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,bmi1")]
     #[inline(never)]
@@ -880,9 +937,20 @@ impl SubpixelProcessors {
         t: u8,
         counters: &mut Counters,
     ) -> Visible {
-        use std::arch::x86_64::_mm256_and_si256;
-        let code = table_code_avx2_body!(&*self, frag, edges);
-        let code = _mm256_and_si256(code, box_lanes_avx2(frag.px, frag.py, frag.bbox));
+        use std::arch::x86_64::_mm256_andnot_si256;
+        if (frag.px | frag.py) >= CELL_LIMIT_32 {
+            // Beyond the 32-bit vertex paths (no screen the model supports): checked
+            // once here, the checks of every edge's near end and vertex pixels fold.
+            return self.process_plain::<STATS>(frag, edges, t, counters);
+        }
+        // Two copies of the edge loop: with and without the vertex pixels (a test an
+        // edge less).
+        let code = if self.vertex_exact {
+            table_code_avx2_body!(&*self, frag, edges, true)
+        } else {
+            table_code_avx2_body!(&*self, frag, edges, false)
+        };
+        let code = _mm256_andnot_si256(box_outside_lanes_avx2(frag.px, frag.py, frag.bbox), code);
         let (vis, pixels) = self.apply_avx2::<STATS>(frag.px, frag.py, code, t);
         if STATS {
             counters.spp.edge_lookups += 16 * frag.active.len() as u64;
@@ -1010,18 +1078,20 @@ impl SubpixelProcessors {
     /// The background is the last fragment of the cell's pixels this frame, so the
     /// cell's mask is put back in its cleared state for the next frame (rather than
     /// set full).
-    #[inline(always)]
+    ///
+    /// The first writes (the pixels with nothing covered) by [`word_bits`]: the
+    /// compiler's byte mask of the loop's bits came out in the wrong order and was
+    /// put right bit group by bit group, some 14 instructions a cell more.
+    #[inline]
     pub fn background(&mut self, cx: usize, cy: usize) -> Visible {
         let cell = cy * self.stride + cx;
-        let mask = &mut self.masks[cell].0;
+        let mask = self.masks[cell].0;
+        let first = word_bits(&mask, 0);
         let mut sets = [0u16; 16];
-        for (s, m) in sets.iter_mut().zip(mask.iter()) {
+        for (s, m) in sets.iter_mut().zip(mask) {
             *s = !m;
         }
-        // (By byte masks, [`word_bits`]: the loop's bit per pixel took some 20
-        // instructions a cell.)
-        let first = word_bits(mask, 0);
-        *mask = self.cleared[cell].0;
+        self.masks[cell] = self.cleared[cell];
         Visible { px: cx as u32 * CELL_SIDE, py: cy as u32 * CELL_SIDE, sets, first, covered: true }
     }
 
@@ -1616,37 +1686,58 @@ fn near_end_cell_at_sse41(line: &ExactLine, px: u32, py: u32, t: std::arch::x86_
 /// The vertex pixels of [`vertex_start`] in AVX2 (tested), for cells and endpoints
 /// within [`VertexWindow::fits`]: with `t` a coordinate less the cell's first widened
 /// border, pixel `d` holds it when `0 <= t - d ONE <= ONE + 2 MARGIN`, one unsigned
-/// compare of the 32-bit difference (which wraps into that range only when it is
-/// there). Each endpoint's coordinate along the words and across them, four `d` a
-/// coordinate, are one register; its lanes' sign mask gives the endpoint's lane bits
-/// (low nibble) and word bits (high nibble). About 30 instructions against some 45
-/// for the window table's way. It takes the endpoints' offsets `t`
-/// ([`end_offsets_sse2`]), made once for the test of [`near_end_cell_at_sse41`] too.
-/// Each endpoint's registers hold its x then its y (no swap by the TG), and its
-/// eight bits are turned into pixels by [`NEAR_PIXELS`]: some 16 instructions
-/// fewer a call than the swap and the products that spread the bits.
+/// compare of the difference. It takes the endpoints' offsets `t`
+/// ([`end_offsets_sse2`]), made once for the test of [`near_end_cell_at_sse41`] too,
+/// packed to 16 bits with signed saturation: a value in range (below `4 ONE + 2
+/// MARGIN`) is kept, and a saturated or far one stays out of range (its 16-bit
+/// difference, wrapped or not, is above `ONE + 2 MARGIN` as an unsigned number),
+/// so both endpoints' x and y, four `d` each, are one register of 16-bit lanes, and
+/// one byte mask gives each endpoint's lane bits (low nibble) and word bits (high
+/// nibble) in a byte: about 14 instructions against some 20 for two registers of
+/// 32-bit lanes. Each endpoint's lanes hold its x then its y (no swap by the TG),
+/// and its eight bits are turned into pixels by [`NEAR_PIXELS`]: some 16
+/// instructions fewer a call than the swap and the products that spread the bits.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,bmi1")]
 #[inline]
 fn vertex_near_avx2(t: std::arch::x86_64::__m128i, vertical: bool) -> u16 {
     use std::arch::x86_64::{
-        _mm256_castsi128_si256, _mm256_castsi256_ps, _mm256_cmpeq_epi32, _mm256_min_epu32, _mm256_movemask_ps,
-        _mm256_permutevar8x32_epi32, _mm256_set1_epi32, _mm256_setr_epi32, _mm256_sub_epi32,
+        _mm256_broadcastq_epi64, _mm256_castsi256_si128, _mm256_cmpeq_epi16, _mm256_extracti128_si256,
+        _mm256_min_epu16, _mm256_set1_epi16, _mm256_setr_epi16, _mm256_setr_epi8, _mm256_shuffle_epi8,
+        _mm256_sub_epi16, _mm_movemask_epi8, _mm_packs_epi16, _mm_packs_epi32,
     };
-    const ONE: i32 = SNAP_ONE;
-    const SPAN: i32 = SNAP_ONE + 2 * VERTEX_MARGIN;
-    let t = _mm256_castsi128_si256(t);
-    // Lanes 0-3 an endpoint's x, 4-7 its y: `t` holds x, y, x, y.
-    let first = _mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1);
-    let second = _mm256_setr_epi32(2, 2, 2, 2, 3, 3, 3, 3);
-    let steps = _mm256_setr_epi32(0, ONE, 2 * ONE, 3 * ONE, 0, ONE, 2 * ONE, 3 * ONE);
-    let bits = |index| {
-        let d = _mm256_sub_epi32(_mm256_permutevar8x32_epi32(t, index), steps);
-        let within = _mm256_cmpeq_epi32(_mm256_min_epu32(d, _mm256_set1_epi32(SPAN)), d);
-        _mm256_movemask_ps(_mm256_castsi256_ps(within)) as usize & (NEAR_BITS - 1)
-    };
+    const ONE: i16 = SNAP_ONE as i16;
+    const SPAN: i16 = (SNAP_ONE + 2 * VERTEX_MARGIN) as i16;
+    // `ax ay bx by` as 16-bit lanes 0-3, the quadword in both halves.
+    let t = _mm256_broadcastq_epi64(_mm_packs_epi32(t, t));
+    // Lanes 0-3 the first endpoint's x, 4-7 its y; 8-15 the second's.
+    let spread = _mm256_setr_epi8(
+        0, 1, 0, 1, 0, 1, 0, 1, 2, 3, 2, 3, 2, 3, 2, 3, 4, 5, 4, 5, 4, 5, 4, 5, 6, 7, 6, 7, 6, 7, 6, 7,
+    );
+    let steps = _mm256_setr_epi16(
+        0,
+        ONE,
+        2 * ONE,
+        3 * ONE,
+        0,
+        ONE,
+        2 * ONE,
+        3 * ONE,
+        0,
+        ONE,
+        2 * ONE,
+        3 * ONE,
+        0,
+        ONE,
+        2 * ONE,
+        3 * ONE,
+    );
+    let d = _mm256_sub_epi16(_mm256_shuffle_epi8(t, spread), steps);
+    let within = _mm256_cmpeq_epi16(_mm256_min_epu16(d, _mm256_set1_epi16(SPAN)), d);
+    let bits =
+        _mm_movemask_epi8(_mm_packs_epi16(_mm256_castsi256_si128(within), _mm256_extracti128_si256::<1>(within)));
     let pixels = &NEAR_PIXELS[usize::from(vertical)];
-    pixels[bits(first)] | pixels[bits(second)]
+    pixels[bits as usize & (NEAR_BITS - 1)] | pixels[bits as usize >> 8 & (NEAR_BITS - 1)]
 }
 
 /// The values of an endpoint's eight within-bits in [`vertex_near_avx2`].
@@ -1959,12 +2050,13 @@ mod tests {
         }
     }
 
-    /// [`box_lanes_avx2`] is [`pixel_lanes_avx2`] of [`box_pixels`]: boxes around,
+    /// [`box_outside_lanes_avx2`] is the complement of [`pixel_lanes_avx2`] of
+    /// [`box_pixels`], lane by lane: boxes around,
     /// across and inside cells, empty, reversed and unbounded, near the origin and near
     /// the end of `u32`.
     #[cfg(target_arch = "x86_64")]
     #[test]
-    fn box_lanes_avx2_are_box_pixels() {
+    fn box_outside_lanes_avx2_are_box_pixels() {
         if !has_avx2() {
             return;
         }
@@ -1995,14 +2087,14 @@ mod tests {
             let (got, want) = unsafe {
                 let mut got = [0u16; 16];
                 let mut want = [0u16; 16];
-                std::arch::x86_64::_mm256_storeu_si256(got.as_mut_ptr().cast(), box_lanes_avx2(px, py, bbox));
+                std::arch::x86_64::_mm256_storeu_si256(got.as_mut_ptr().cast(), box_outside_lanes_avx2(px, py, bbox));
                 std::arch::x86_64::_mm256_storeu_si256(
                     want.as_mut_ptr().cast(),
                     pixel_lanes_avx2(box_pixels(px, py, bbox)),
                 );
                 (got, want)
             };
-            assert_eq!(got, want, "case {k}: cell ({px}, {py}), box {bbox:?}");
+            assert_eq!(got, want.map(|w| !w), "case {k}: cell ({px}, {py}), box {bbox:?}");
         }
     }
 
@@ -2497,7 +2589,41 @@ mod tests {
             // SAFETY: x86-64 always has SSE2.
             #[allow(unsafe_code, reason = "a function compiled for SSE2, on x86-64")]
             let got = unsafe { line_indices_sse2(v1, slope) };
-            assert_eq!(got, line_indices_portable(v1, slope), "v1 {v1}, slope {slope}");
+            let want = line_indices_portable(v1, slope);
+            assert_eq!(got, want, "v1 {v1}, slope {slope}");
+            if std::is_x86_feature_detected!("sse4.1") {
+                // SAFETY: the processor was just found to have SSE4.1.
+                #[allow(unsafe_code, reason = "a function compiled for SSE4.1, after detection")]
+                let lanes = unsafe { std::arch::x86_64::_mm_cvtsi128_si64(line_index_lanes_sse41(v1, slope)) } as u64;
+                let got: [usize; 4] = std::array::from_fn(|k| (lanes >> (16 * k)) as u16 as usize);
+                assert_eq!(got, want, "SSE4.1: v1 {v1}, slope {slope}");
+            }
+        }
+    }
+
+    /// [`SubpixelProcessors::background`] by its definition: every subpixel the mask
+    /// leaves open, first writes where the pixel had nothing, and the cell's mask back
+    /// in its cleared state; masks empty, full, pre-masked and anything.
+    #[test]
+    fn background_is_its_definition() {
+        let mut next = xorshift(0xBAC6_0000_D5EE_0007);
+        let (w, h) = (23, 14);
+        let mut spp = SubpixelProcessors::new(w, h, SppMode::Area);
+        for k in 0..5_000 {
+            let (cx, cy) = (next(6) as usize, next(4) as usize);
+            let cell = cy * spp.stride + cx;
+            let mask: [u16; 16] = std::array::from_fn(|_| match next(4) {
+                0 => 0,
+                1 => FULL,
+                _ => next(1 << 16) as u16,
+            });
+            spp.masks[cell].0 = [[0; 16], [FULL; 16], mask][(next(6) as usize).min(2)];
+            let before = spp.masks[cell].0;
+            let vis = spp.background(cx, cy);
+            let first = (0..16).fold(0u16, |f, i| f | u16::from(before[i] == 0) << i);
+            let want = Visible { px: 4 * cx as u32, py: 4 * cy as u32, sets: before.map(|m| !m), first, covered: true };
+            assert_eq!(vis, want, "case {k}");
+            assert_eq!(spp.masks[cell], spp.cleared[cell], "case {k}");
         }
     }
 
