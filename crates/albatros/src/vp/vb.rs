@@ -1509,6 +1509,9 @@ impl F1Log8 {
         static F1: OnceLock<F1Log8> = OnceLock::new();
         F1.get_or_init(|| {
             let scale = LogScale::get(PAIR_MEANS_BITS);
+            // The bounds [`F1_ZERO16`] is chosen for: `T[0]` and the table's end.
+            #[cfg(target_arch = "x86_64")]
+            assert!(scale.ln2 <= 118 && scale.softplus_table().len() <= 988, "the 8-bit ln(1 + e^x) table");
             Self {
                 f1: LogF1::new(scale),
                 encoder: scale.encoder8.as_ref().expect("the 8-bit encoder").tables(),
@@ -1609,10 +1612,11 @@ const SOFTPLUS_LANE_MAX: i32 = SOFTPLUS_PADDED as i32 - 2;
 /// encoder ROM's entries by windows of the table placed at the first visible pixel,
 /// near colours being the common case); then unless every visible pixel of the half
 /// is a whole first fragment (stored as its codes, as [`accumulate_log`] does), eq.
-/// 3 and 4 in lanes ([`f1_lanes_avx2!`]), with the cell's `ln S` found once in
-/// 16-bit lanes ([`ln_area16_avx2`]). Rows of the half are stored whole, or their
-/// visible pixels by a masked store. Each half is its own copy of the code
-/// ([`f1_half_avx2`]).
+/// 3 and 4 in lanes, with the cell's `ln S` found once in 16-bit lanes
+/// ([`ln_area16_avx2`]): when both halves run them, the whole cell's in 16-bit lanes
+/// ([`f1_cell16_avx2`]), else the half's in 32-bit lanes ([`f1_half_avx2`],
+/// [`f1_lanes_avx2!`]). Rows of the half are stored whole, or their visible pixels
+/// by a masked store. Each step of each half is its own copy of the code.
 ///
 /// Measured (callgrind, default at 1920 x 1080, one thread): the windows placed at a
 /// pixel rather than at the least address over the lanes (a reduction and a test
@@ -1629,7 +1633,11 @@ const SOFTPLUS_LANE_MAX: i32 = SOFTPLUS_PADDED as i32 - 2;
 /// and two permutes per half), a partial row by `vpmaskmovd` rather than a branch
 /// per pixel, the rows with later fragments loaded without a loop: colour + VB
 /// default 125.0 → 120.8 M, terrain 212.4 → 195.0 M (77 % of terrain's half-cells
-/// run eq. 3-4, and a third of its rows are partial).
+/// run eq. 3-4, and a third of its rows are partial); then eq. 3-4 of a cell whose
+/// two halves both run them in 16-bit lanes (one register a component for the 16
+/// pixels, half the operations but the gathers): default 120.8 → 120.9 M, terrain
+/// 195.0 → 191.1 M (shade's perf samples over the SPP's on terrain 0.689 → 0.668,
+/// five runs each).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
@@ -1663,6 +1671,18 @@ fn accumulate_log8_avx2(
     let last = (u32::BITS - 1 - visible.leading_zeros()) as usize / SIDE;
     let start = py * width + px;
     let cell = &mut codes[start..start + last * width + cols];
+    // Both halves run eq. 3 or 4 (each has a visible pixel that is not a whole
+    // first fragment): the whole cell's in 16-bit lanes.
+    if done & 0xFF != visible & 0xFF && done >> 8 != visible >> 8 {
+        let words = [
+            encode_half_avx2::<0, CELL_PATH>(colors, encoder, hidden, visible),
+            encode_half_avx2::<1, CELL_PATH>(colors, encoder, hidden, visible),
+        ];
+        let words = f1_cell16_avx2(cell, width, cols, vis, words, sets, f1, ln_area);
+        store_half_avx2::<0, CELL_PATH>(cell, width, cols, words[0], visible);
+        store_half_avx2::<1, CELL_PATH>(cell, width, cols, words[1], visible);
+        return;
+    }
     // `ln S` of the 16 pixels once for the cell, when a half runs eq. 3 or 4 (it
     // has a visible pixel that is not a whole first fragment).
     let ln_s = if done != visible { ln_area16_avx2(sets, ln_area) } else { _mm256_setzero_si256() };
@@ -1670,12 +1690,25 @@ fn accumulate_log8_avx2(
     // lanes' shifts and register halves known at compile time (a loop over the
     // halves kept them in registers and the F1 registers on the stack).
     if visible & 0xFF != 0 {
-        f1_half_avx2::<0>(cell, width, cols, vis, colors, f1, encoder, ln_s, hidden, visible, done);
+        let word = encode_half_avx2::<0, HALF_PATH>(colors, encoder, hidden, visible);
+        let word = f1_half_avx2::<0>(cell, width, cols, vis, f1, word, ln_s, visible, done);
+        store_half_avx2::<0, HALF_PATH>(cell, width, cols, word, visible);
     }
     if visible >> 8 != 0 {
-        f1_half_avx2::<1>(cell, width, cols, vis, colors, f1, encoder, ln_s, hidden, visible, done);
+        let word = encode_half_avx2::<1, HALF_PATH>(colors, encoder, hidden, visible);
+        let word = f1_half_avx2::<1>(cell, width, cols, vis, f1, word, ln_s, visible, done);
+        store_half_avx2::<1, HALF_PATH>(cell, width, cols, word, visible);
     }
 }
+
+/// [`encode_half_avx2`]'s and [`store_half_avx2`]'s call sites, their second
+/// parameter: each copy of them has one caller, so that it is inlined (called
+/// from both [`accumulate_log8_avx2`]'s paths, they stayed out of line: default's
+/// colour + VB 2.6 M instructions more).
+#[cfg(target_arch = "x86_64")]
+const CELL_PATH: usize = 0;
+#[cfg(target_arch = "x86_64")]
+const HALF_PATH: usize = 1;
 
 /// The `ln S` table ([`LogScale::ln_area_table`]) as [`ln_area16_avx2`] reads it:
 /// each entry as an `i16` (0 down to -470 for 8 bits), its low bytes in `low` and
@@ -1693,6 +1726,8 @@ struct LnArea16 {
 impl LnArea16 {
     /// The bytes of `ln_area`'s entries, each a 16-bit integer.
     fn new(ln_area: &[i32; AREA_DENOMINATOR as usize]) -> Self {
+        // The bounds [`F1_ZERO16`] is chosen for (the 8-bit scale's).
+        assert!(ln_area.iter().all(|e| (-470..=0).contains(e)), "the 8-bit ln S table");
         let word = |i: usize| i16::try_from(ln_area[i % SHUFFLE_TABLE]).expect("an ln S entry of 16 bits") as u16;
         Self {
             low: std::array::from_fn(|i| (word(i) & 0xFF) as u8),
@@ -1788,36 +1823,233 @@ macro_rules! f1_lanes_avx2 {
     }};
 }
 
-/// Half `HALF` (pixels `8 HALF .. 8 HALF + 8`, rows `2 HALF` and `2 HALF + 1`) of
-/// [`accumulate_log8_avx2`], which has a visible pixel: its codes, then eq. 3 and 4
-/// unless every visible pixel is a whole first fragment, then its rows' stores.
-/// `cell`: the cell's rows in one slice; `ln_s`: the cell's 16 `ln S` in 16-bit
-/// lanes ([`ln_area16_avx2`]; made when a half runs eq. 3 or 4); `hidden`: the
-/// zero compares of the cell's 16 sets; `visible`, `done`: bits of the cell's
-/// pixels.
-///
-/// A row with a later fragment is loaded whole (when the cell's rows are whole on
-/// the screen), and a row with some of its pixels visible is stored by a masked
-/// store of those (`vpmaskmovd`): no branch per pixel (terrain's small polygons
-/// leave a third of their rows partial).
+/// Zero's value in [`f1_cell16_avx2`]'s 16-bit lanes ([`LogFine::ZERO`] does not
+/// fit an `i16`). The same results as `ZERO`: a code's value (weighed, at least
+/// `4 - 470`) is more than the 988 entries of the 8-bit `ln(1 + e^x)` table above
+/// it and its weighed value (so a sum with it is the other operand, as past the
+/// table's end); a sum of two zeros (at most `T[0]`, 118, above it) is below the
+/// floor `4 - T[0]` (stored as 0); the differences (at most `4 Q1 + 470 - F1_ZERO16`)
+/// and the rounding stay inside an `i16`.
+#[cfg(target_arch = "x86_64")]
+const F1_ZERO16: i16 = -4096;
+
+#[cfg(target_arch = "x86_64")]
+const _: () = assert!(
+    (F1_ZERO16 as i32) < 4 - 470 - 988
+        && (F1_ZERO16 as i32) + 118 < 4 - 118
+        && 4 * 255 + 470 - (F1_ZERO16 as i32) < SOFTPLUS_LANE_MAX
+);
+
+/// The 16-bit lanes of [`f1_cell16_avx2`]: lanes 0-3 pixels 0-3 (row 0), lanes 4-7
+/// pixels 8-11 (row 2), lanes 8-11 pixels 4-7 (row 1), lanes 12-15 pixels 12-15 (row
+/// 3): the order in which two half-cells' 32-bit lanes (rows 0 and 1, rows 2 and 3)
+/// unpack into one register and back. A bit per lane, the pixel's.
+#[cfg(target_arch = "x86_64")]
+const CELL16_PIXEL_BITS: [i16; 16] = {
+    let mut bits = [0i16; 16];
+    let mut lane = 0;
+    while lane < 16 {
+        let pixel = (lane & 3) + 4 * ((lane >> 2 & 1) * 2 + (lane >> 3));
+        bits[lane] = (1u16 << pixel) as i16;
+        lane += 1;
+    }
+    bits
+};
+
+/// The codes of component `C` of a cell's two halves' [`Word8`]s in 16-bit lanes, in
+/// [`CELL16_PIXEL_BITS`]' order.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn component16_avx2<const C: i8>(words: [__m256i; 2]) -> __m256i {
+    // Byte `C` of each word to a 16-bit lane, in the low 8 bytes of each half.
+    let z = -1i8;
+    let pick = _mm256_setr_epi8(
+        C,
+        z,
+        4 + C,
+        z,
+        8 + C,
+        z,
+        12 + C,
+        z,
+        z,
+        z,
+        z,
+        z,
+        z,
+        z,
+        z,
+        z,
+        C,
+        z,
+        4 + C,
+        z,
+        8 + C,
+        z,
+        12 + C,
+        z,
+        z,
+        z,
+        z,
+        z,
+        z,
+        z,
+        z,
+        z,
+    );
+    _mm256_unpacklo_epi64(_mm256_shuffle_epi8(words[0], pick), _mm256_shuffle_epi8(words[1], pick))
+}
+
+/// [`LogFine::from_code`] in 16-bit lanes: `4 q`, or [`F1_ZERO16`] for 0.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn from_code16_avx2(q: __m256i) -> __m256i {
+    let zero = _mm256_cmpeq_epi16(q, _mm256_setzero_si256());
+    _mm256_add_epi16(
+        _mm256_slli_epi16::<{ LOG_FRAC_BITS as i32 }>(q),
+        _mm256_and_si256(zero, _mm256_set1_epi16(F1_ZERO16)),
+    )
+}
+
+/// Eq. 3 and 4 of a whole cell whose two halves both run them, in 16-bit lanes
+/// (one register a component for the 16 pixels, where [`f1_lanes_avx2!`] takes two
+/// of 32-bit lanes): the halves' codes `words` weighed by `ln S` (the cell's sets
+/// `sets`), summed with the stored words where a pixel has a later fragment
+/// (`ln(1 + e^x)` by two gathers a component), and stored ([`LogArith::store`]),
+/// zero as [`F1_ZERO16`]; the halves' new words. The same values as the 32-bit
+/// lanes' (every value in them but zero's fits an `i16`), so the same words.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+#[allow(clippy::too_many_arguments, reason = "the cell's registers, passed as they are")]
+fn f1_cell16_avx2(
+    cell: &[Word8],
+    width: usize,
+    cols: usize,
+    vis: &Visible,
+    words: [__m256i; 2],
+    sets: __m256i,
+    f1: &LogF1,
+    ln_area: &LnArea16,
+) -> [__m256i; 2] {
+    let visible = u32::from(!mask16_avx2(_mm256_cmpeq_epi16(sets, _mm256_setzero_si256())));
+    let later = visible & !u32::from(vis.first);
+    // Rows 0 and 2 in the 64-bit halves of the low 128 bits, rows 1 and 3 above.
+    let ln_s = ln_area16_avx2(_mm256_permute4x64_epi64::<0b11_01_10_00>(sets), ln_area);
+    // SAFETY: `CELL16_PIXEL_BITS` is 16 `i16`, the 32 bytes the load reads.
+    #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
+    let lane_bits = unsafe { _mm256_loadu_si256(CELL16_PIXEL_BITS.as_ptr().cast()) };
+    let first_lanes = _mm256_cmpeq_epi16(_mm256_and_si256(_mm256_set1_epi16(vis.first as i16), lane_bits), lane_bits);
+    // The rows with a later fragment (each has a visible pixel: it is in `cell`).
+    // (No closure: it would not take this function's target feature.)
+    let mut rows = [_mm_setzero_si128(); 4];
+    for (r, row) in rows.iter_mut().enumerate() {
+        if later >> (4 * r) & 0xF != 0 {
+            *row = load_row(&cell[r * width..r * width + cols]);
+        }
+    }
+    let stored = [_mm256_set_m128i(rows[1], rows[0]), _mm256_set_m128i(rows[3], rows[2])];
+    let arith = f1.arith;
+    let mut codes = [_mm256_setzero_si256(); 3];
+    for (c, code) in codes.iter_mut().enumerate() {
+        let (new, old) = match c {
+            0 => (component16_avx2::<0>(words), component16_avx2::<0>(stored)),
+            1 => (component16_avx2::<1>(words), component16_avx2::<1>(stored)),
+            _ => (component16_avx2::<2>(words), component16_avx2::<2>(stored)),
+        };
+        let mut v = _mm256_add_epi16(from_code16_avx2(new), ln_s);
+        if later != 0 {
+            let s = from_code16_avx2(old);
+            let (hi, lo) = (_mm256_max_epi16(v, s), _mm256_min_epi16(v, s));
+            let d = _mm256_min_epi16(_mm256_sub_epi16(hi, lo), _mm256_set1_epi16(SOFTPLUS_LANE_MAX as i16));
+            let table = arith.softplus.as_ptr().cast::<i32>();
+            let (d0, d1) = (
+                _mm256_cvtepi16_epi32(_mm256_castsi256_si128(d)),
+                _mm256_cvtepi16_epi32(_mm256_extracti128_si256::<1>(d)),
+            );
+            // SAFETY: every lane of `d0`, `d1` is `0 ..= SOFTPLUS_PADDED - 2` (a
+            // difference max - min, clamped), so the 4 bytes read at entry `d` are
+            // entries `d` and `d + 1` of the padded table.
+            #[allow(unsafe_code, reason = "gathers from the padded ln(1 + e^x) table, the indices clamped inside it")]
+            let (t0, t1) = unsafe { (_mm256_i32gather_epi32::<2>(table, d0), _mm256_i32gather_epi32::<2>(table, d1)) };
+            // Entry `d` (the low 16 bits), back in 16-bit lanes in `d`'s order.
+            let zero = _mm256_setzero_si256();
+            let (t0, t1) = (_mm256_blend_epi16::<0b1010_1010>(t0, zero), _mm256_blend_epi16::<0b1010_1010>(t1, zero));
+            let t = _mm256_permute4x64_epi64::<0b11_01_10_00>(_mm256_packus_epi32(t0, t1));
+            v = _mm256_blendv_epi8(_mm256_add_epi16(hi, t), v, first_lanes);
+        }
+        // `LogArith::store`.
+        let rounded = _mm256_srai_epi16::<2>(_mm256_add_epi16(
+            _mm256_add_epi16(v, _mm256_set1_epi16((FINE_PER_CODE / 2 - 1) as i16)),
+            _mm256_and_si256(_mm256_srai_epi16::<2>(v), _mm256_set1_epi16(1)),
+        ));
+        let clamped =
+            _mm256_min_epi16(_mm256_max_epi16(rounded, _mm256_set1_epi16(1)), _mm256_set1_epi16(arith.one as i16));
+        let kept = _mm256_cmpgt_epi16(v, _mm256_set1_epi16((arith.floor - 1) as i16));
+        *code = _mm256_and_si256(clamped, kept);
+    }
+    // R | G << 8 in 16-bit lanes, then B above them in 32-bit lanes: rows 0 and 1
+    // (the low 64 bits of each half), rows 2 and 3.
+    let rg = _mm256_or_si256(codes[0], _mm256_slli_epi16::<8>(codes[1]));
+    [_mm256_unpacklo_epi16(rg, codes[2]), _mm256_unpackhi_epi16(rg, codes[2])]
+}
+
+/// Eq. 3 and 4 of half `HALF` (pixels `8 HALF .. 8 HALF + 8`, rows `2 HALF` and `2
+/// HALF + 1`) of [`accumulate_log8_avx2`] in 32-bit lanes ([`f1_lanes_avx2!`]) when it
+/// runs them (`done`: a bit per whole first fragment) and the other half does not:
+/// the half's new words from its codes `word`. `cell`: the
+/// cell's rows in one slice; `ln_s`: the cell's 16 `ln S` in 16-bit lanes
+/// ([`ln_area16_avx2`]); `visible`: a bit per pixel of the cell. A row with a later
+/// fragment is loaded whole (when the cell's rows are whole on the screen).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
 #[allow(clippy::too_many_arguments, reason = "the cell's registers, passed as they are")]
 fn f1_half_avx2<const HALF: usize>(
-    cell: &mut [Word8],
+    cell: &[Word8],
     width: usize,
     cols: usize,
     vis: &Visible,
-    colors: &CellColors,
     f1: &LogF1,
-    encoder: Encoder8Tables,
+    word: __m256i,
     ln_s: __m256i,
-    hidden: __m256i,
     visible: u32,
     done: u32,
-) {
-    const SIDE: usize = CELL_SIDE as usize;
+) -> __m256i {
+    let lanes = visible >> (8 * HALF) & 0xFF;
+    if done >> (8 * HALF) & 0xFF == lanes {
+        return word;
+    }
+    let first = u32::from(vis.first) >> (8 * HALF) & 0xFF;
+    let later = lanes & !first;
+    // Rows `2 HALF` and `2 HALF + 1`, each where it has a later fragment (and so a
+    // visible pixel: it is in `cell`).
+    let at = 2 * HALF * width;
+    let low = if later & 0xF != 0 { load_row(&cell[at..at + cols]) } else { _mm_setzero_si128() };
+    let high = if later >> 4 != 0 { load_row(&cell[at + width..at + width + cols]) } else { _mm_setzero_si128() };
+    let stored = _mm256_set_m128i(high, low);
+    let ln_s = _mm256_cvtepi16_epi32(if HALF == 0 {
+        _mm256_castsi256_si128(ln_s)
+    } else {
+        _mm256_extracti128_si256::<1>(ln_s)
+    });
+    f1_lanes_avx2!(word, stored, ln_s, first, later, f1)
+}
+
+/// The codes of half `HALF` of a cell ([`encode8_rgb_avx2`]), which has a visible
+/// pixel; `hidden`: the zero compares of the cell's 16 sets; `visible`: a bit per
+/// pixel.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn encode_half_avx2<const HALF: usize, const SITE: usize>(
+    colors: &CellColors,
+    encoder: Encoder8Tables,
+    hidden: __m256i,
+    visible: u32,
+) -> __m256i {
     let lanes = visible >> (8 * HALF) & 0xFF;
     let hidden = _mm256_cvtepi16_epi32(if HALF == 0 {
         _mm256_castsi256_si128(hidden)
@@ -1827,23 +2059,26 @@ fn f1_half_avx2<const HALF: usize>(
     // The first visible pixel's colour places the ROM's windows.
     let lane = (8 * HALF + lanes.trailing_zeros() as usize) & 15;
     let anchor = [colors.rgb[0][lane], colors.rgb[1][lane], colors.rgb[2][lane]];
-    let mut word = encode8_rgb_avx2(load_colors_half(colors, HALF), hidden, anchor, encoder.entries);
-    if done >> (8 * HALF) & 0xFF != lanes {
-        let first = u32::from(vis.first) >> (8 * HALF) & 0xFF;
-        let later = lanes & !first;
-        // Rows `2 HALF` and `2 HALF + 1`, each where it has a later fragment (and
-        // so a visible pixel: it is in `cell`).
-        let at = 2 * HALF * width;
-        let low = if later & 0xF != 0 { load_row(&cell[at..at + cols]) } else { _mm_setzero_si128() };
-        let high = if later >> 4 != 0 { load_row(&cell[at + width..at + width + cols]) } else { _mm_setzero_si128() };
-        let stored = _mm256_set_m128i(high, low);
-        let ln_s = _mm256_cvtepi16_epi32(if HALF == 0 {
-            _mm256_castsi256_si128(ln_s)
-        } else {
-            _mm256_extracti128_si256::<1>(ln_s)
-        });
-        word = f1_lanes_avx2!(word, stored, ln_s, first, later, f1);
-    }
+    encode8_rgb_avx2(load_colors_half(colors, HALF), hidden, anchor, encoder.entries)
+}
+
+/// Stores the words `word` of half `HALF` of a cell at its visible pixels
+/// (`visible`, a bit per pixel of the cell): a row whole, or its visible pixels by
+/// a masked store (`vpmaskmovd`: no branch per pixel, where terrain's small
+/// polygons leave a third of their rows partial), at the screen's right edge one
+/// by one.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn store_half_avx2<const HALF: usize, const SITE: usize>(
+    cell: &mut [Word8],
+    width: usize,
+    cols: usize,
+    word: __m256i,
+    visible: u32,
+) {
+    const SIDE: usize = CELL_SIDE as usize;
+    let lanes = visible >> (8 * HALF) & 0xFF;
     for row in 0..2 {
         let lanes = lanes >> (4 * row) & 0xF;
         if lanes == 0 {
