@@ -1477,14 +1477,15 @@ fn accumulate_log_flat<W: LogWord>(codes: &mut [W], width: usize, vis: &Visible,
 /// counts a gather as one instruction: it showed city's colour + VB 148 -> 119 M).
 #[inline]
 fn accumulate_log8(codes: &mut [Word8], width: usize, vis: &Visible, colors: &CellColors) {
-    let F1Log8 { f1, encoder } = F1Log8::get();
+    let regs = F1Log8::get();
+    let (f1, encoder) = (&regs.f1, &regs.encoder);
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx2") {
         // SAFETY: `accumulate_log8_avx2` only needs AVX2, which the processor was
         // just found to have.
         #[allow(unsafe_code, reason = "the one call of a function compiled for AVX2, after detection")]
         unsafe {
-            return accumulate_log8_avx2(codes, width, vis, colors, f1, *encoder);
+            return accumulate_log8_avx2(codes, width, vis, colors, f1, *encoder, &regs.ln_area);
         }
     }
     accumulate_log8_portable(codes, width, vis, colors, *f1, *encoder)
@@ -1496,6 +1497,9 @@ fn accumulate_log8(codes: &mut [Word8], width: usize, vis: &Visible, colors: &Ce
 struct F1Log8 {
     f1: LogF1<'static>,
     encoder: Encoder8Tables<'static>,
+    /// The `ln S` table as [`ln_area16_avx2`] reads it.
+    #[cfg(target_arch = "x86_64")]
+    ln_area: LnArea16,
 }
 
 impl F1Log8 {
@@ -1505,7 +1509,15 @@ impl F1Log8 {
         static F1: OnceLock<F1Log8> = OnceLock::new();
         F1.get_or_init(|| {
             let scale = LogScale::get(PAIR_MEANS_BITS);
-            Self { f1: LogF1::new(scale), encoder: scale.encoder8.as_ref().expect("the 8-bit encoder").tables() }
+            // The bounds [`F1_ZERO16`] is chosen for: `T[0]` and the table's end.
+            #[cfg(target_arch = "x86_64")]
+            assert!(scale.ln2 <= 118 && scale.softplus_table().len() <= 988, "the 8-bit ln(1 + e^x) table");
+            Self {
+                f1: LogF1::new(scale),
+                encoder: scale.encoder8.as_ref().expect("the 8-bit encoder").tables(),
+                #[cfg(target_arch = "x86_64")]
+                ln_area: LnArea16::new(&scale.ln_area),
+            }
         })
     }
 }
@@ -1528,7 +1540,8 @@ impl F1Avx2<'_> {
     #[target_feature(enable = "avx2")]
     #[inline]
     pub(crate) fn accumulate(&mut self, vis: &Visible, colors: &CellColors) {
-        accumulate_log8_avx2(self.codes, self.width, vis, colors, &self.regs.f1, self.regs.encoder);
+        let regs = self.regs;
+        accumulate_log8_avx2(self.codes, self.width, vis, colors, &regs.f1, regs.encoder, &regs.ln_area);
     }
 }
 
@@ -1599,9 +1612,11 @@ const SOFTPLUS_LANE_MAX: i32 = SOFTPLUS_PADDED as i32 - 2;
 /// encoder ROM's entries by windows of the table placed at the first visible pixel,
 /// near colours being the common case); then unless every visible pixel of the half
 /// is a whole first fragment (stored as its codes, as [`accumulate_log`] does), eq.
-/// 3 and 4 in lanes ([`f1_lanes_avx2!`]). Rows of the half are stored whole, or their
-/// visible pixels one by one. Each half is its own copy of the code
-/// ([`f1_half_avx2`]).
+/// 3 and 4 in lanes, with the cell's `ln S` found once in 16-bit lanes
+/// ([`ln_area16_avx2`]): when both halves run them, the whole cell's in 16-bit lanes
+/// ([`f1_cell16_avx2`]), else the half's in 32-bit lanes ([`f1_half_avx2`],
+/// [`f1_lanes_avx2!`]). Rows of the half are stored whole, or their visible pixels
+/// by a masked store. Each step of each half is its own copy of the code.
 ///
 /// Measured (callgrind, default at 1920 x 1080, one thread): the windows placed at a
 /// pixel rather than at the least address over the lanes (a reduction and a test
@@ -1614,6 +1629,15 @@ const SOFTPLUS_LANE_MAX: i32 = SOFTPLUS_PADDED as i32 - 2;
 /// then: a row with a later fragment, loaded for eq. 4, blended with the new words
 /// and stored whole instead of its visible pixels one by one (default 145.1 →
 /// 147.6 M, terrain 220.4 → 225.5 M: the loaded words kept alive to the stores).
+/// Session 12: `ln S` once a cell in 16-bit lanes (it had been a popcount by shifts
+/// and two permutes per half), a partial row by `vpmaskmovd` rather than a branch
+/// per pixel, the rows with later fragments loaded without a loop: colour + VB
+/// default 125.0 → 120.8 M, terrain 212.4 → 195.0 M (77 % of terrain's half-cells
+/// run eq. 3-4, and a third of its rows are partial); then eq. 3-4 of a cell whose
+/// two halves both run them in 16-bit lanes (one register a component for the 16
+/// pixels, half the operations but the gathers): default 120.8 → 120.9 M, terrain
+/// 195.0 → 191.1 M (shade's perf samples over the SPP's on terrain 0.689 → 0.668,
+/// five runs each).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
@@ -1624,6 +1648,7 @@ fn accumulate_log8_avx2(
     colors: &CellColors,
     f1: &LogF1,
     encoder: Encoder8Tables,
+    ln_area: &LnArea16,
 ) {
     const SIDE: usize = CELL_SIDE as usize;
     // SAFETY: `vis.sets` is 16 `u16`, the 32 bytes the load reads.
@@ -1646,23 +1671,112 @@ fn accumulate_log8_avx2(
     let last = (u32::BITS - 1 - visible.leading_zeros()) as usize / SIDE;
     let start = py * width + px;
     let cell = &mut codes[start..start + last * width + cols];
+    // Both halves run eq. 3 or 4 (each has a visible pixel that is not a whole
+    // first fragment): the whole cell's in 16-bit lanes.
+    if done & 0xFF != visible & 0xFF && done >> 8 != visible >> 8 {
+        let words = [
+            encode_half_avx2::<0, CELL_PATH>(colors, encoder, hidden, visible),
+            encode_half_avx2::<1, CELL_PATH>(colors, encoder, hidden, visible),
+        ];
+        let words = f1_cell16_avx2(cell, width, cols, vis, words, sets, f1, ln_area);
+        store_half_avx2::<0, CELL_PATH>(cell, width, cols, words[0], visible);
+        store_half_avx2::<1, CELL_PATH>(cell, width, cols, words[1], visible);
+        return;
+    }
+    // `ln S` of the 16 pixels once for the cell, when a half runs eq. 3 or 4 (it
+    // has a visible pixel that is not a whole first fragment).
+    let ln_s = if done != visible { ln_area16_avx2(sets, ln_area) } else { _mm256_setzero_si256() };
     // The halves one after the other, each its own copy of the code with its
     // lanes' shifts and register halves known at compile time (a loop over the
     // halves kept them in registers and the F1 registers on the stack).
     if visible & 0xFF != 0 {
-        f1_half_avx2::<0>(cell, width, cols, vis, colors, f1, encoder, sets, hidden, visible, done);
+        let word = encode_half_avx2::<0, HALF_PATH>(colors, encoder, hidden, visible);
+        let word = f1_half_avx2::<0>(cell, width, cols, vis, f1, word, ln_s, visible, done);
+        store_half_avx2::<0, HALF_PATH>(cell, width, cols, word, visible);
     }
     if visible >> 8 != 0 {
-        f1_half_avx2::<1>(cell, width, cols, vis, colors, f1, encoder, sets, hidden, visible, done);
+        let word = encode_half_avx2::<1, HALF_PATH>(colors, encoder, hidden, visible);
+        let word = f1_half_avx2::<1>(cell, width, cols, vis, f1, word, ln_s, visible, done);
+        store_half_avx2::<1, HALF_PATH>(cell, width, cols, word, visible);
     }
 }
 
-/// `f1_lanes_avx2!(word, stored, sets, first, later, f1)`: eq. 3 and 4 of half a
+/// [`encode_half_avx2`]'s and [`store_half_avx2`]'s call sites, their second
+/// parameter: each copy of them has one caller, so that it is inlined (called
+/// from both [`accumulate_log8_avx2`]'s paths, they stayed out of line: default's
+/// colour + VB 2.6 M instructions more).
+#[cfg(target_arch = "x86_64")]
+const CELL_PATH: usize = 0;
+#[cfg(target_arch = "x86_64")]
+const HALF_PATH: usize = 1;
+
+/// The `ln S` table ([`LogScale::ln_area_table`]) as [`ln_area16_avx2`] reads it:
+/// each entry as an `i16` (0 down to -470 for 8 bits), its low bytes in `low` and
+/// its high bytes in `high`, each table of 16 bytes in both halves of a register
+/// (the `vpshufb` tables).
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
+struct LnArea16 {
+    low: [u8; 2 * SHUFFLE_TABLE],
+    high: [u8; 2 * SHUFFLE_TABLE],
+}
+
+#[cfg(target_arch = "x86_64")]
+impl LnArea16 {
+    /// The bytes of `ln_area`'s entries, each a 16-bit integer.
+    fn new(ln_area: &[i32; AREA_DENOMINATOR as usize]) -> Self {
+        // The bounds [`F1_ZERO16`] is chosen for (the 8-bit scale's).
+        assert!(ln_area.iter().all(|e| (-470..=0).contains(e)), "the 8-bit ln S table");
+        let word = |i: usize| i16::try_from(ln_area[i % SHUFFLE_TABLE]).expect("an ln S entry of 16 bits") as u16;
+        Self {
+            low: std::array::from_fn(|i| (word(i) & 0xFF) as u8),
+            high: std::array::from_fn(|i| (word(i) >> 8) as u8),
+        }
+    }
+}
+
+/// `ln S` of the cell's 16 pixels from their subpixel sets `sets` (16-bit lanes):
+/// [`LogScale::ln_area_table`]'s entry `n - 1`, `n` the set's subpixels (entry 15,
+/// `ln 1 = 0`, for an empty set, whose pixel is not stored), in 16-bit lanes. The
+/// counts by a `vpshufb` table of the nibbles' bits, the entry's two bytes by two
+/// `vpshufb` of [`LnArea16`]; once a cell, where the 32-bit lanes of a half had
+/// taken a popcount by shifts and two permutes a half.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn ln_area16_avx2(sets: __m256i, table: &LnArea16) -> __m256i {
+    let nibble = _mm256_set1_epi8(0x0F);
+    let bits = _mm256_setr_epi8(
+        0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4, 0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4,
+    );
+    let low = _mm256_and_si256(sets, nibble);
+    let high = _mm256_and_si256(_mm256_srli_epi16::<4>(sets), nibble);
+    // Each byte's count, 0 to 8.
+    let bytes = _mm256_add_epi8(_mm256_shuffle_epi8(bits, low), _mm256_shuffle_epi8(bits, high));
+    // The low byte's count plus the high byte's: `n` in the low byte (at most 16:
+    // no carry), the high byte's count above it; `n - 1` to four bits (an empty
+    // set's -1 is 15, as a full one's 16 - 1), the high byte cleared.
+    let n = _mm256_add_epi16(bytes, _mm256_srli_epi16::<8>(bytes));
+    let index = _mm256_and_si256(_mm256_add_epi16(n, _mm256_set1_epi16(-1)), _mm256_set1_epi16(15));
+    // The entry's low byte at the lane's low byte (an index byte with bit 7 set
+    // gives 0), its high byte at the high byte.
+    // SAFETY: `table.low` and `table.high` are 32 bytes each, which the loads read.
+    #[allow(unsafe_code, reason = "aligned loads of arrays of a register's size")]
+    let (low_table, high_table) =
+        unsafe { (_mm256_load_si256(table.low.as_ptr().cast()), _mm256_load_si256(table.high.as_ptr().cast())) };
+    let entry_low = _mm256_shuffle_epi8(low_table, _mm256_or_si256(index, _mm256_set1_epi16(i16::MIN)));
+    let entry_high =
+        _mm256_shuffle_epi8(high_table, _mm256_or_si256(_mm256_slli_epi16::<8>(index), _mm256_set1_epi16(0x80)));
+    _mm256_or_si256(entry_low, entry_high)
+}
+
+/// `f1_lanes_avx2!(word, stored, ln_s, first, later, f1)`: eq. 3 and 4 of half a
 /// cell in lanes (a whole first fragment's result is its code): the codes `word`
-/// ([`Word8`]s) weighed by `ln S` (the subpixel counts of `sets` through the `ln S`
-/// table, permuted from two registers, no gather), summed with the `stored` words in
-/// the `later` lanes (`ln(1 + e^x)` by a gather), and stored ([`LogArith::store`]);
-/// `first`, `later`: a bit per lane; the value, the half's new words.
+/// ([`Word8`]s) weighed by `ln_s` (each lane's `ln S`, [`ln_area16_avx2`]), summed
+/// with the `stored` words in the `later` lanes (`ln(1 + e^x)` by a gather), and
+/// stored ([`LogArith::store`]); `first`, `later`: a bit per lane; the value, the
+/// half's new words.
 ///
 /// A macro, so that its body is expanded inside [`f1_half_avx2`] and takes that
 /// function's target feature: as an `#[inline]` function with two callers (one
@@ -1670,27 +1784,10 @@ fn accumulate_log8_avx2(
 /// memory (terrain's colour + VB 226.5 → 230.6 M instructions).
 #[cfg(target_arch = "x86_64")]
 macro_rules! f1_lanes_avx2 {
-    ($word:expr, $stored:expr, $sets:expr, $first:expr, $later:expr, $f1:expr) => {{
-        let (word, stored, sets, first, later, f1): (__m256i, __m256i, __m256i, u32, u32, &LogF1) =
-            ($word, $stored, $sets, $first, $later, $f1);
+    ($word:expr, $stored:expr, $ln_s:expr, $first:expr, $later:expr, $f1:expr) => {{
+        let (word, stored, ln_s, first, later, f1): (__m256i, __m256i, __m256i, u32, u32, &LogF1) =
+            ($word, $stored, $ln_s, $first, $later, $f1);
         let lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
-        let ln_s = {
-            let index =
-                _mm256_and_si256(_mm256_sub_epi32(popcount16_avx2(sets), _mm256_set1_epi32(1)), _mm256_set1_epi32(15));
-            // The 16 entries in two registers, each permuted by the index's
-            // low 3 bits, the one its bit 3 names kept (no gather).
-            let (low, high): (&[i32; 8], &[i32; 8]) =
-                (f1.ln_area[..8].try_into().expect("8 entries"), f1.ln_area[8..].try_into().expect("8 entries"));
-            // SAFETY: `low` and `high` are 8 `i32` each, the 32 bytes each load reads.
-            #[allow(unsafe_code, reason = "unaligned loads of arrays of a register's size")]
-            let (low, high) =
-                unsafe { (_mm256_loadu_si256(low.as_ptr().cast()), _mm256_loadu_si256(high.as_ptr().cast())) };
-            _mm256_blendv_epi8(
-                _mm256_permutevar8x32_epi32(low, index),
-                _mm256_permutevar8x32_epi32(high, index),
-                _mm256_cmpgt_epi32(index, _mm256_set1_epi32(7)),
-            )
-        };
         let first_lanes = _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(first as i32), lane_bits), lane_bits);
         let arith = f1.arith;
         let mut out = _mm256_setzero_si256();
@@ -1726,29 +1823,233 @@ macro_rules! f1_lanes_avx2 {
     }};
 }
 
-/// Half `HALF` (pixels `8 HALF .. 8 HALF + 8`, rows `2 HALF` and `2 HALF + 1`) of
-/// [`accumulate_log8_avx2`], which has a visible pixel: its codes, then eq. 3 and 4
-/// unless every visible pixel is a whole first fragment, then its rows' stores.
-/// `cell`: the cell's rows in one slice; `sets`, `hidden`: the cell's 16 sets and
-/// their zero compares; `visible`, `done`: bits of the cell's pixels.
+/// Zero's value in [`f1_cell16_avx2`]'s 16-bit lanes ([`LogFine::ZERO`] does not
+/// fit an `i16`). The same results as `ZERO`: a code's value (weighed, at least
+/// `4 - 470`) is more than the 988 entries of the 8-bit `ln(1 + e^x)` table above
+/// it and its weighed value (so a sum with it is the other operand, as past the
+/// table's end); a sum of two zeros (at most `T[0]`, 118, above it) is below the
+/// floor `4 - T[0]` (stored as 0); the differences (at most `4 Q1 + 470 - F1_ZERO16`)
+/// and the rounding stay inside an `i16`.
+#[cfg(target_arch = "x86_64")]
+const F1_ZERO16: i16 = -4096;
+
+#[cfg(target_arch = "x86_64")]
+const _: () = assert!(
+    (F1_ZERO16 as i32) < 4 - 470 - 988
+        && (F1_ZERO16 as i32) + 118 < 4 - 118
+        && 4 * 255 + 470 - (F1_ZERO16 as i32) < SOFTPLUS_LANE_MAX
+);
+
+/// The 16-bit lanes of [`f1_cell16_avx2`]: lanes 0-3 pixels 0-3 (row 0), lanes 4-7
+/// pixels 8-11 (row 2), lanes 8-11 pixels 4-7 (row 1), lanes 12-15 pixels 12-15 (row
+/// 3): the order in which two half-cells' 32-bit lanes (rows 0 and 1, rows 2 and 3)
+/// unpack into one register and back. A bit per lane, the pixel's.
+#[cfg(target_arch = "x86_64")]
+const CELL16_PIXEL_BITS: [i16; 16] = {
+    let mut bits = [0i16; 16];
+    let mut lane = 0;
+    while lane < 16 {
+        let pixel = (lane & 3) + 4 * ((lane >> 2 & 1) * 2 + (lane >> 3));
+        bits[lane] = (1u16 << pixel) as i16;
+        lane += 1;
+    }
+    bits
+};
+
+/// The codes of component `C` of a cell's two halves' [`Word8`]s in 16-bit lanes, in
+/// [`CELL16_PIXEL_BITS`]' order.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn component16_avx2<const C: i8>(words: [__m256i; 2]) -> __m256i {
+    // Byte `C` of each word to a 16-bit lane, in the low 8 bytes of each half.
+    let z = -1i8;
+    let pick = _mm256_setr_epi8(
+        C,
+        z,
+        4 + C,
+        z,
+        8 + C,
+        z,
+        12 + C,
+        z,
+        z,
+        z,
+        z,
+        z,
+        z,
+        z,
+        z,
+        z,
+        C,
+        z,
+        4 + C,
+        z,
+        8 + C,
+        z,
+        12 + C,
+        z,
+        z,
+        z,
+        z,
+        z,
+        z,
+        z,
+        z,
+        z,
+    );
+    _mm256_unpacklo_epi64(_mm256_shuffle_epi8(words[0], pick), _mm256_shuffle_epi8(words[1], pick))
+}
+
+/// [`LogFine::from_code`] in 16-bit lanes: `4 q`, or [`F1_ZERO16`] for 0.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn from_code16_avx2(q: __m256i) -> __m256i {
+    let zero = _mm256_cmpeq_epi16(q, _mm256_setzero_si256());
+    _mm256_add_epi16(
+        _mm256_slli_epi16::<{ LOG_FRAC_BITS as i32 }>(q),
+        _mm256_and_si256(zero, _mm256_set1_epi16(F1_ZERO16)),
+    )
+}
+
+/// Eq. 3 and 4 of a whole cell whose two halves both run them, in 16-bit lanes
+/// (one register a component for the 16 pixels, where [`f1_lanes_avx2!`] takes two
+/// of 32-bit lanes): the halves' codes `words` weighed by `ln S` (the cell's sets
+/// `sets`), summed with the stored words where a pixel has a later fragment
+/// (`ln(1 + e^x)` by two gathers a component), and stored ([`LogArith::store`]),
+/// zero as [`F1_ZERO16`]; the halves' new words. The same values as the 32-bit
+/// lanes' (every value in them but zero's fits an `i16`), so the same words.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+#[allow(clippy::too_many_arguments, reason = "the cell's registers, passed as they are")]
+fn f1_cell16_avx2(
+    cell: &[Word8],
+    width: usize,
+    cols: usize,
+    vis: &Visible,
+    words: [__m256i; 2],
+    sets: __m256i,
+    f1: &LogF1,
+    ln_area: &LnArea16,
+) -> [__m256i; 2] {
+    let visible = u32::from(!mask16_avx2(_mm256_cmpeq_epi16(sets, _mm256_setzero_si256())));
+    let later = visible & !u32::from(vis.first);
+    // Rows 0 and 2 in the 64-bit halves of the low 128 bits, rows 1 and 3 above.
+    let ln_s = ln_area16_avx2(_mm256_permute4x64_epi64::<0b11_01_10_00>(sets), ln_area);
+    // SAFETY: `CELL16_PIXEL_BITS` is 16 `i16`, the 32 bytes the load reads.
+    #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
+    let lane_bits = unsafe { _mm256_loadu_si256(CELL16_PIXEL_BITS.as_ptr().cast()) };
+    let first_lanes = _mm256_cmpeq_epi16(_mm256_and_si256(_mm256_set1_epi16(vis.first as i16), lane_bits), lane_bits);
+    // The rows with a later fragment (each has a visible pixel: it is in `cell`).
+    // (No closure: it would not take this function's target feature.)
+    let mut rows = [_mm_setzero_si128(); 4];
+    for (r, row) in rows.iter_mut().enumerate() {
+        if later >> (4 * r) & 0xF != 0 {
+            *row = load_row(&cell[r * width..r * width + cols]);
+        }
+    }
+    let stored = [_mm256_set_m128i(rows[1], rows[0]), _mm256_set_m128i(rows[3], rows[2])];
+    let arith = f1.arith;
+    let mut codes = [_mm256_setzero_si256(); 3];
+    for (c, code) in codes.iter_mut().enumerate() {
+        let (new, old) = match c {
+            0 => (component16_avx2::<0>(words), component16_avx2::<0>(stored)),
+            1 => (component16_avx2::<1>(words), component16_avx2::<1>(stored)),
+            _ => (component16_avx2::<2>(words), component16_avx2::<2>(stored)),
+        };
+        let mut v = _mm256_add_epi16(from_code16_avx2(new), ln_s);
+        if later != 0 {
+            let s = from_code16_avx2(old);
+            let (hi, lo) = (_mm256_max_epi16(v, s), _mm256_min_epi16(v, s));
+            let d = _mm256_min_epi16(_mm256_sub_epi16(hi, lo), _mm256_set1_epi16(SOFTPLUS_LANE_MAX as i16));
+            let table = arith.softplus.as_ptr().cast::<i32>();
+            let (d0, d1) = (
+                _mm256_cvtepi16_epi32(_mm256_castsi256_si128(d)),
+                _mm256_cvtepi16_epi32(_mm256_extracti128_si256::<1>(d)),
+            );
+            // SAFETY: every lane of `d0`, `d1` is `0 ..= SOFTPLUS_PADDED - 2` (a
+            // difference max - min, clamped), so the 4 bytes read at entry `d` are
+            // entries `d` and `d + 1` of the padded table.
+            #[allow(unsafe_code, reason = "gathers from the padded ln(1 + e^x) table, the indices clamped inside it")]
+            let (t0, t1) = unsafe { (_mm256_i32gather_epi32::<2>(table, d0), _mm256_i32gather_epi32::<2>(table, d1)) };
+            // Entry `d` (the low 16 bits), back in 16-bit lanes in `d`'s order.
+            let zero = _mm256_setzero_si256();
+            let (t0, t1) = (_mm256_blend_epi16::<0b1010_1010>(t0, zero), _mm256_blend_epi16::<0b1010_1010>(t1, zero));
+            let t = _mm256_permute4x64_epi64::<0b11_01_10_00>(_mm256_packus_epi32(t0, t1));
+            v = _mm256_blendv_epi8(_mm256_add_epi16(hi, t), v, first_lanes);
+        }
+        // `LogArith::store`.
+        let rounded = _mm256_srai_epi16::<2>(_mm256_add_epi16(
+            _mm256_add_epi16(v, _mm256_set1_epi16((FINE_PER_CODE / 2 - 1) as i16)),
+            _mm256_and_si256(_mm256_srai_epi16::<2>(v), _mm256_set1_epi16(1)),
+        ));
+        let clamped =
+            _mm256_min_epi16(_mm256_max_epi16(rounded, _mm256_set1_epi16(1)), _mm256_set1_epi16(arith.one as i16));
+        let kept = _mm256_cmpgt_epi16(v, _mm256_set1_epi16((arith.floor - 1) as i16));
+        *code = _mm256_and_si256(clamped, kept);
+    }
+    // R | G << 8 in 16-bit lanes, then B above them in 32-bit lanes: rows 0 and 1
+    // (the low 64 bits of each half), rows 2 and 3.
+    let rg = _mm256_or_si256(codes[0], _mm256_slli_epi16::<8>(codes[1]));
+    [_mm256_unpacklo_epi16(rg, codes[2]), _mm256_unpackhi_epi16(rg, codes[2])]
+}
+
+/// Eq. 3 and 4 of half `HALF` (pixels `8 HALF .. 8 HALF + 8`, rows `2 HALF` and `2
+/// HALF + 1`) of [`accumulate_log8_avx2`] in 32-bit lanes ([`f1_lanes_avx2!`]) when it
+/// runs them (`done`: a bit per whole first fragment) and the other half does not:
+/// the half's new words from its codes `word`. `cell`: the
+/// cell's rows in one slice; `ln_s`: the cell's 16 `ln S` in 16-bit lanes
+/// ([`ln_area16_avx2`]); `visible`: a bit per pixel of the cell. A row with a later
+/// fragment is loaded whole (when the cell's rows are whole on the screen).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
 #[allow(clippy::too_many_arguments, reason = "the cell's registers, passed as they are")]
 fn f1_half_avx2<const HALF: usize>(
-    cell: &mut [Word8],
+    cell: &[Word8],
     width: usize,
     cols: usize,
     vis: &Visible,
-    colors: &CellColors,
     f1: &LogF1,
-    encoder: Encoder8Tables,
-    sets: __m256i,
-    hidden: __m256i,
+    word: __m256i,
+    ln_s: __m256i,
     visible: u32,
     done: u32,
-) {
-    const SIDE: usize = CELL_SIDE as usize;
+) -> __m256i {
+    let lanes = visible >> (8 * HALF) & 0xFF;
+    if done >> (8 * HALF) & 0xFF == lanes {
+        return word;
+    }
+    let first = u32::from(vis.first) >> (8 * HALF) & 0xFF;
+    let later = lanes & !first;
+    // Rows `2 HALF` and `2 HALF + 1`, each where it has a later fragment (and so a
+    // visible pixel: it is in `cell`).
+    let at = 2 * HALF * width;
+    let low = if later & 0xF != 0 { load_row(&cell[at..at + cols]) } else { _mm_setzero_si128() };
+    let high = if later >> 4 != 0 { load_row(&cell[at + width..at + width + cols]) } else { _mm_setzero_si128() };
+    let stored = _mm256_set_m128i(high, low);
+    let ln_s = _mm256_cvtepi16_epi32(if HALF == 0 {
+        _mm256_castsi256_si128(ln_s)
+    } else {
+        _mm256_extracti128_si256::<1>(ln_s)
+    });
+    f1_lanes_avx2!(word, stored, ln_s, first, later, f1)
+}
+
+/// The codes of half `HALF` of a cell ([`encode8_rgb_avx2`]), which has a visible
+/// pixel; `hidden`: the zero compares of the cell's 16 sets; `visible`: a bit per
+/// pixel.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn encode_half_avx2<const HALF: usize, const SITE: usize>(
+    colors: &CellColors,
+    encoder: Encoder8Tables,
+    hidden: __m256i,
+    visible: u32,
+) -> __m256i {
     let lanes = visible >> (8 * HALF) & 0xFF;
     let hidden = _mm256_cvtepi16_epi32(if HALF == 0 {
         _mm256_castsi256_si128(hidden)
@@ -1758,27 +2059,26 @@ fn f1_half_avx2<const HALF: usize>(
     // The first visible pixel's colour places the ROM's windows.
     let lane = (8 * HALF + lanes.trailing_zeros() as usize) & 15;
     let anchor = [colors.rgb[0][lane], colors.rgb[1][lane], colors.rgb[2][lane]];
-    let mut word = encode8_rgb_avx2(load_colors_half(colors, HALF), hidden, anchor, encoder.entries);
-    if done >> (8 * HALF) & 0xFF != lanes {
-        let first = u32::from(vis.first) >> (8 * HALF) & 0xFF;
-        let later = lanes & !first;
-        let mut stored = _mm256_setzero_si256();
-        for row in 0..2 {
-            if later >> (4 * row) & 0xF == 0 {
-                continue;
-            }
-            // Row `2 HALF + row` has a visible pixel, so it is in `cell`.
-            let at = (2 * HALF + row) * width;
-            let words = load_row(&cell[at..at + cols]);
-            stored = if row == 0 {
-                _mm256_inserti128_si256::<0>(stored, words)
-            } else {
-                _mm256_inserti128_si256::<1>(stored, words)
-            };
-        }
-        let half_sets = if HALF == 0 { _mm256_castsi256_si128(sets) } else { _mm256_extracti128_si256::<1>(sets) };
-        word = f1_lanes_avx2!(word, stored, _mm256_cvtepu16_epi32(half_sets), first, later, f1);
-    }
+    encode8_rgb_avx2(load_colors_half(colors, HALF), hidden, anchor, encoder.entries)
+}
+
+/// Stores the words `word` of half `HALF` of a cell at its visible pixels
+/// (`visible`, a bit per pixel of the cell): a row whole, or its visible pixels by
+/// a masked store (`vpmaskmovd`: no branch per pixel, where terrain's small
+/// polygons leave a third of their rows partial), at the screen's right edge one
+/// by one.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn store_half_avx2<const HALF: usize, const SITE: usize>(
+    cell: &mut [Word8],
+    width: usize,
+    cols: usize,
+    word: __m256i,
+    visible: u32,
+) {
+    const SIDE: usize = CELL_SIDE as usize;
+    let lanes = visible >> (8 * HALF) & 0xFF;
     for row in 0..2 {
         let lanes = lanes >> (4 * row) & 0xF;
         if lanes == 0 {
@@ -1787,11 +2087,16 @@ fn f1_half_avx2<const HALF: usize>(
         let at = (2 * HALF + row) * width;
         let new = if row == 0 { _mm256_castsi256_si128(word) } else { _mm256_extracti128_si256::<1>(word) };
         let dst = &mut cell[at..at + cols];
-        if lanes == 0xF && cols == SIDE {
-            store_row(dst, new);
+        if cols == SIDE {
+            if lanes == 0xF {
+                store_row(dst, new);
+            } else {
+                store_row_masked(dst, new, lanes);
+            }
         } else {
-            // The visible pixels one by one: a load of the row to blend with
-            // would often miss the cache (city's colour + VB 0.4 ms slower).
+            // At the screen's right edge: the visible pixels one by one (a load of
+            // the row to blend with would often miss the cache: city's colour + VB
+            // 0.4 ms slower).
             let mut words = [0u32; SIDE];
             store_row(&mut words, new);
             for (x, w) in dst.iter_mut().enumerate() {
@@ -1800,6 +2105,22 @@ fn f1_half_avx2<const HALF: usize>(
                 }
             }
         }
+    }
+}
+
+/// Stores the words of `v` whose bits are set in `lanes` (bit `x`, word `x`) into a
+/// row of four VMEM words, by one masked store; the others are left as they are.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn store_row_masked(row: &mut [Word8], v: __m128i, lanes: u32) {
+    let row: &mut [Word8; 4] = row.try_into().expect("a row of four words");
+    let bits = _mm_setr_epi32(1, 2, 4, 8);
+    let mask = _mm_cmpeq_epi32(_mm_and_si128(_mm_set1_epi32(lanes as i32), bits), bits);
+    // SAFETY: `row` is 16 bytes, of which the store writes the words `mask` selects.
+    #[allow(unsafe_code, reason = "a masked store of a register into an array of its size")]
+    unsafe {
+        _mm_maskstore_epi32(row.as_mut_ptr().cast(), mask, v)
     }
 }
 
@@ -1962,18 +2283,6 @@ fn from_code_avx2(q: __m256i) -> __m256i {
         _mm256_slli_epi32::<{ LOG_FRAC_BITS as i32 }>(q),
         _mm256_and_si256(zero, _mm256_set1_epi32(LogFine::ZERO.0)),
     )
-}
-
-/// The bit counts of 16-bit values in 32-bit lanes (the subpixels of a set).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[inline]
-fn popcount16_avx2(x: __m256i) -> __m256i {
-    let x = _mm256_sub_epi32(x, _mm256_and_si256(_mm256_srli_epi32::<1>(x), _mm256_set1_epi32(0x5555)));
-    let m2 = _mm256_set1_epi32(0x3333);
-    let x = _mm256_add_epi32(_mm256_and_si256(x, m2), _mm256_and_si256(_mm256_srli_epi32::<2>(x), m2));
-    let x = _mm256_and_si256(_mm256_add_epi32(x, _mm256_srli_epi32::<4>(x)), _mm256_set1_epi32(0x0F0F));
-    _mm256_and_si256(_mm256_add_epi32(x, _mm256_srli_epi32::<8>(x)), _mm256_set1_epi32(0x1F))
 }
 
 /// A VMEM word of three log codes.
@@ -3688,6 +3997,45 @@ mod tests {
         }
     }
 
+    /// [`ln_area16_avx2`] is the `ln S` table's entry `n - 1` for every count `n`
+    /// of subpixels, 1 to 16, in every lane, whichever subpixels make the count
+    /// (and entry 15 for an empty set, as the 32-bit lanes had it).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn ln_area16_is_the_ln_s_table() {
+        if !std::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        #[allow(unsafe_code, reason = "a test of the AVX2 copy, after detection")]
+        fn run(sets: &[u16; 16], table: &LnArea16) -> [i16; 16] {
+            let mut out = [0i16; 16];
+            // SAFETY: the processor has AVX2 (checked above); `sets` and `out` are
+            // 32 bytes each, which the load reads and the store writes.
+            unsafe {
+                let v = ln_area16_avx2(_mm256_loadu_si256(sets.as_ptr().cast()), table);
+                _mm256_storeu_si256(out.as_mut_ptr().cast(), v);
+            }
+            out
+        }
+        let s = LogScale::get(PAIR_MEANS_BITS);
+        let table = LnArea16::new(&s.ln_area);
+        let mut rng = Rng(0x1A_5E);
+        for round in 0..20_000 {
+            let sets: [u16; 16] = std::array::from_fn(|i| match (round + i) % 5 {
+                0 => 0,
+                1 => FULL,
+                2 => 1 << (rng.next() % 16),
+                _ => rng.next() as u16,
+            });
+            let got = run(&sets, &table);
+            for (set, got) in sets.iter().zip(got) {
+                let n = set.count_ones() as usize;
+                let want = s.ln_area[n.wrapping_sub(1) & 15];
+                assert_eq!(i32::from(got), want, "set {set:#06x}");
+            }
+        }
+    }
+
     /// Every copy of the 8-bit F1 the processor can run (AVX2) gives the
     /// portable copy's words: random cells (whole and partial pixels, first writes
     /// and read-modify-writes, rows of whole first fragments, cells past the right
@@ -3702,7 +4050,7 @@ mod tests {
             #[allow(unsafe_code, reason = "a test of the AVX2 copy, after detection")]
             fn avx2(c: &mut [Word8], w: usize, v: &Visible, k: &CellColors, f: LogF1, e: Encoder8Tables) {
                 // SAFETY: called only when the processor has AVX2 (below).
-                unsafe { accumulate_log8_avx2(c, w, v, k, &f, e) }
+                unsafe { accumulate_log8_avx2(c, w, v, k, &f, e, &LnArea16::new(f.ln_area)) }
             }
             if std::is_x86_feature_detected!("avx2") {
                 copies.push(("AVX2", avx2));
