@@ -838,23 +838,13 @@ impl CellProcessors {
         let (bx1, by1) = (bx1 - 1, by1 - 1);
         let shift = self.root_level + 2 - level;
         let (cx0, cy0) = (bx0 >> shift, by0 >> shift);
-        let mut cells = [(0usize, Cell { level, x: 0, y: 0 }); 4];
-        let mut count = 0;
-        for y in cy0..=by1 >> shift {
-            for x in cx0..=bx1 >> shift {
-                cells[count] = (morton(x, y), Cell { level, x, y });
-                count += 1;
-            }
-        }
-        // Z order: of a 2 x 2 block straddling a border, the left column comes first
-        // (for a vertical border) or the top row (a horizontal one).
-        let cells = &mut cells[..count];
-        cells.sort_unstable_by_key(|c| c.0);
+        let (cells, count) = block_in_z_order(cx0, cy0, bx1 >> shift > cx0, by1 >> shift > cy0);
         let side = i64::from(self.side(level));
         let half = 1i64 << (EDGE_FRAC_BITS + (self.root_level + 1 - level));
         let first = 4 * self.stride * level as usize;
         let n = poly.edges.len();
-        for &(z, cell) in cells.iter() {
+        for &(z, x, y) in &cells[..count] {
+            let cell = Cell { level, x, y };
             if self.covered(z, level, start.level + 1) {
                 continue;
             }
@@ -1080,6 +1070,35 @@ impl CellProcessors {
             let (x, y) = (cell.x * 2 + (c & 1), cell.y * 2 + (c >> 1));
             self.fill(Cell { level: child_level, x, y }, 4 * z + c as usize, opaque, spp);
         }
+    }
+}
+
+/// The Z-order index's bits of a cell's column (even positions) and of its row (odd).
+const MORTON_X: usize = 0x5555_5555_5555_5555u64 as usize;
+/// See [`MORTON_X`].
+const MORTON_Y: usize = !MORTON_X;
+
+/// The cells of a block of one or two columns (`wide`) and one or two rows (`tall`)
+/// from cell `(x0, y0)` of one level, as `(z, x, y)` with `z` the Z-order index, in Z
+/// order (the order the descent visits them; the first `count` entries). A 2 x 2 block
+/// goes row by row unless the border between its columns is that of a larger cell
+/// than the border between its rows (`x0` ends in more one bits than `y0`): then column
+/// by column (`block_is_in_z_order` checks it against a sort). The neighbours' indices
+/// come from the first's by a carry through the column's or the row's bits.
+#[inline(always)]
+fn block_in_z_order(x0: u32, y0: u32, wide: bool, tall: bool) -> ([(usize, u32, u32); 4], usize) {
+    let z0 = morton(x0, y0);
+    let zx = ((z0 | MORTON_Y).wrapping_add(1) & MORTON_X) | (z0 & MORTON_Y);
+    let zy = ((z0 | MORTON_X).wrapping_add(2) & MORTON_Y) | (z0 & MORTON_X);
+    let zxy = ((zx | MORTON_X).wrapping_add(2) & MORTON_Y) | (zx & MORTON_X);
+    let (right, below, corner) = ((zx, x0 + 1, y0), (zy, x0, y0 + 1), (zxy, x0 + 1, y0 + 1));
+    let first = (z0, x0, y0);
+    match (wide, tall) {
+        (false, false) => ([first; 4], 1),
+        (true, false) => ([first, right, first, first], 2),
+        (false, true) => ([first, below, first, first], 2),
+        (true, true) if x0.trailing_ones() > y0.trailing_ones() => ([first, below, right, corner], 4),
+        (true, true) => ([first, right, below, corner], 4),
     }
 }
 
@@ -1430,6 +1449,24 @@ mod tests {
                     let fast = child_codes(d1, d2, half, kind);
                     let codes = u32::from(ci) | u32::from(cri) << 4 | u32::from(cri & !ci) << 8;
                     assert_eq!(fast, ChildCodes { codes, vm: dm }, "d1 {d1}, d2 {d2}, half {half}, {tg:?}, lr {lr}");
+                }
+            }
+        }
+    }
+
+    /// [`block_in_z_order`] gives a block's cells with their Z-order indices, sorted
+    /// by them: every block of up to 2 x 2 cells from the first 64 x 64 cells.
+    #[test]
+    fn block_is_in_z_order() {
+        for y0 in 0..64u32 {
+            for x0 in 0..64u32 {
+                for (wide, tall) in [(false, false), (true, false), (false, true), (true, true)] {
+                    let (cells, count) = block_in_z_order(x0, y0, wide, tall);
+                    let mut want: Vec<(usize, u32, u32)> = (y0..=y0 + u32::from(tall))
+                        .flat_map(|y| (x0..=x0 + u32::from(wide)).map(move |x| (morton(x, y), x, y)))
+                        .collect();
+                    want.sort_unstable();
+                    assert_eq!(&cells[..count], &want[..], "block at ({x0}, {y0}), {wide} {tall}");
                 }
             }
         }
