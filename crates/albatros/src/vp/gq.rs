@@ -433,6 +433,9 @@ pub struct CellProcessors {
     inside: Vec<Vec<usize>>,
     /// Bit `k`: `inside[k]` is not empty.
     queued: u32,
+    /// [`Self::start_at_size`]'s cells, as [`start_key`]s (scratch, kept here so
+    /// that no polygon clears it).
+    starts: [u64; MAX_START_CELLS],
 }
 
 /// A level-L cell handed to the SPPs, with the edges that cross it; or, from
@@ -508,6 +511,7 @@ impl CellProcessors {
             stride: 0,
             inside: vec![Vec::new(); root_level as usize + 1],
             queued: 0,
+            starts: [0; MAX_START_CELLS],
         }
     }
 
@@ -787,27 +791,37 @@ impl CellProcessors {
     }
 
     /// The level of a box's size (`bbox`, not empty): the deepest level at most L - 1
-    /// whose cells it spans at most two of each way. Not deeper than L - 1 (8 pixel
-    /// cells), whose split hands the SPPs only the edges crossing each last-level
-    /// cell.
+    /// whose cells it spans fewer than [`MAX_START_SPAN`] of each way. Not deeper
+    /// than L - 1 (8 pixel cells), whose split hands the SPPs only the edges crossing
+    /// each last-level cell.
     fn size_level(&self, bbox: [u32; 4]) -> u32 {
         let [x0, x1, y0, y1] = bbox;
         let (x1, y1) = (x1 - 1, y1 - 1);
-        // Cells of `2^shift` pixels.
-        let mut shift = 3;
-        while (x1 >> shift) - (x0 >> shift) > 1 || (y1 >> shift) - (y0 >> shift) > 1 {
+        // Cells of `2^shift` pixels; most boxes (`terrain`'s and `many`'s) fit L - 1's.
+        if (x1 >> 3) - (x0 >> 3) < MAX_START_SPAN && (y1 >> 3) - (y0 >> 3) < MAX_START_SPAN {
+            return (self.root_level + 2).saturating_sub(3);
+        }
+        let mut shift = 4;
+        while (x1 >> shift) - (x0 >> shift) >= MAX_START_SPAN || (y1 >> shift) - (y0 >> shift) >= MAX_START_SPAN {
             shift += 1;
         }
         (self.root_level + 2).saturating_sub(shift)
     }
 
-    /// The filling descent's start at the cells of the polygon's size: the at most
-    /// 2 x 2 cells of the deepest level above the last whose cells the box
-    /// (`poly.bbox`) spans at most two of each way, when that level lies two or more
-    /// below the bounding cell `start` (else returns `false`, and the descent starts
-    /// at `start`). A polygon whose box straddles a border of a large cell (a tenth
-    /// of `many`'s triangles start at levels 0-2, 3-9 levels above their size) is
-    /// otherwise split level by level down through cells it barely touches.
+    /// The filling descent's start at the cells of the polygon's size: the cells (up
+    /// to [`MAX_START_SPAN`] each way) of the deepest level above the last whose
+    /// cells the box (`poly.bbox`) spans fewer than that many of each way, when that
+    /// level lies below the bounding cell `start` (else returns `false`, and the
+    /// descent starts at `start`). A polygon whose box straddles a border of a large
+    /// cell (a tenth of `many`'s triangles start at levels 0-2, 3-9 levels above
+    /// their size) is otherwise split level by level down through cells it barely
+    /// touches; and a start cell's edges cost less than a split of its parent: they
+    /// come from the block's first cell's by additions ([`derive_start_list`]), and
+    /// a cell OUT for an edge is dropped there, as its parent's split would drop it.
+    /// Up to four cells each way (16) measured best (session 12: two each way, the
+    /// earlier rule, raster default 110.0 / terrain 349.3 M; four 103.0 / 336.0; five
+    /// 101.7 / 339.2; six 100.6 / 340.3, the sort of the cells in Z order and the
+    /// cells OUT costing more on `terrain`'s small polygons).
     ///
     /// The same subpixels as the descent from `start`: every cell the box meets lies
     /// in these cells, the SPPs clip each code to the box
@@ -818,7 +832,10 @@ impl CellProcessors {
     /// between, as the splits would. Cells the box does not meet are not descended:
     /// their codes clip to nothing. The cells go in Z order, as the descent visits
     /// them, and a cell wholly inside is marked and filled as its parent's split
-    /// would: the same marks.
+    /// would. A cell of a level above wholly inside the polygon (possible when the
+    /// box spans three or four cells) is marked only on its children's level and
+    /// below (under Greene's rule the climb marks it too): the marks stay sound and
+    /// closed downward, so they change later polygons' work, never their subpixels.
     #[inline(always)]
     fn start_at_size(
         &mut self,
@@ -827,45 +844,60 @@ impl CellProcessors {
         counters: &mut Counters,
         spp: &mut impl FnMut(Fragment),
     ) -> bool {
-        if start.level + 2 >= self.root_level {
+        if start.level + 1 >= self.root_level {
             return false;
         }
         let level = self.size_level(poly.bbox);
-        if level < start.level + 2 {
+        if level < start.level + 1 {
             return false;
         }
         let [bx0, bx1, by0, by1] = poly.bbox;
         let (bx1, by1) = (bx1 - 1, by1 - 1);
         let shift = self.root_level + 2 - level;
         let (cx0, cy0) = (bx0 >> shift, by0 >> shift);
-        let mut cells = [(0usize, Cell { level, x: 0, y: 0 }); 4];
+        let (columns, rows) = ((bx1 >> shift) - cx0, (by1 >> shift) - cy0);
+        // The cells as keys `z << 8 | dx << 4 | dy` (`z` the Z-order index, `(dx, dy)`
+        // the cell in the block), in Z order.
         let mut count = 0;
-        for y in cy0..=by1 >> shift {
-            for x in cx0..=bx1 >> shift {
-                cells[count] = (morton(x, y), Cell { level, x, y });
-                count += 1;
+        if columns <= 1 && rows <= 1 {
+            let (block, n) = block_in_z_order(cx0, cy0, columns == 1, rows == 1);
+            for (key, &(z, x, y)) in self.starts.iter_mut().zip(&block[..n]) {
+                *key = start_key(z, x - cx0, y - cy0);
             }
+            count = n;
+        } else {
+            for dy in 0..=rows {
+                for dx in 0..=columns {
+                    self.starts[count] = start_key(morton(cx0 + dx, cy0 + dy), dx, dy);
+                    count += 1;
+                }
+            }
+            self.starts[..count].sort_unstable();
         }
-        // Z order: of a 2 x 2 block straddling a border, the left column comes first
-        // (for a vertical border) or the top row (a horizontal one).
-        let cells = &mut cells[..count];
-        cells.sort_unstable_by_key(|c| c.0);
         let side = i64::from(self.side(level));
         let half = 1i64 << (EDGE_FRAC_BITS + (self.root_level + 1 - level));
         let first = 4 * self.stride * level as usize;
         let n = poly.edges.len();
-        for &(z, cell) in cells.iter() {
+        // The block's first cell's edges, kept in the level's second list: every
+        // cell's are derived from them into the first ([`derive_start_list`]).
+        let base = first + self.stride;
+        let (x0, y0) = (i64::from(cx0) * side, i64::from(cy0) * side);
+        for (i, (a, e)) in self.lists[base..base + n].iter_mut().zip(poly.edges).enumerate() {
+            *a = ActiveEdge::at_cell(i as u32, e, x0, y0, side);
+        }
+        for i in 0..count {
+            let key = self.starts[i];
+            let (z, dx, dy) = ((key >> 8) as usize, (key >> 4 & 0xF) as u32, (key & 0xF) as u32);
+            let cell = Cell { level, x: cx0 + dx, y: cy0 + dy };
             if self.covered(z, level, start.level + 1) {
                 continue;
             }
-            let (x0, y0) = (i64::from(cell.x) * side, i64::from(cell.y) * side);
-            // IN for every edge (as its parent's split would code it: the line at
-            // or before the cell's near border on the polygon's side, at or beyond
-            // its far one on the other; V is exact at cell borders, so the same).
-            let mut inside = true;
-            for (i, (a, e)) in self.lists[first..first + n].iter_mut().zip(poly.edges).enumerate() {
-                *a = ActiveEdge::at_cell(i as u32, e, x0, y0, side);
-                inside &= if a.lr() { a.v1.0.max(a.v2.0) <= 0 } else { a.v1.0.min(a.v2.0) >= 2 * half };
+            let (lo, hi) = self.lists.split_at_mut(base);
+            let (inside, outside) = derive_start_list(&hi[..n], &mut lo[first..first + n], dx, dy, 2 * half);
+            if outside {
+                // OUT for an edge: its parent's split would drop it, and its own split
+                // finds every child OUT (no mark, no cell).
+                continue;
             }
             if inside {
                 // As `split_step` does with a child wholly inside.
@@ -1014,7 +1046,10 @@ impl CellProcessors {
                 continue;
             }
             let (start, end) = (c as usize * stride, ends[c as usize]);
+            // Only cells of two edges can close ([`band_closed`]): their length first,
+            // before the list is sliced.
             if FILL
+                && end - start == 2
                 && band_closed(&self.lists[block + start..block + end], poly.edges, child_cell, self.side(child_level))
             {
                 continue;
@@ -1080,18 +1115,116 @@ impl CellProcessors {
     }
 }
 
+/// The edges of the cell `(dx, dy)` cells along from the first of a block
+/// ([`CellProcessors::start_at_size`]), of side `side` ([`EdgeCoord`] units), from the
+/// first cell's (`first`, [`ActiveEdge::at_cell`]) into `out`: V at a border `k` cells
+/// further along the edge's lines is V1 plus `k` times `V2 - V1` (V is linear and
+/// exact: `V2 - V1` is the slope times the side), and a cell further across has its
+/// origin `side` further, so the same values as [`ActiveEdge::at_cell`] of the cell
+/// (tested by `start_lists_are_at_cell`) by two products and additions. Returns
+/// whether the cell is IN for every edge, and whether it is OUT for one (then the
+/// list is left unfinished: the cell is dropped), as its
+/// parent's split would code it: the line at or before the cell's near border (or
+/// at or beyond its far one) on the polygon's side, or on the other.
+#[inline(always)]
+fn derive_start_list(first: &[ActiveEdge], out: &mut [ActiveEdge], dx: u32, dy: u32, side: i64) -> (bool, bool) {
+    let (dx, dy) = (i64::from(dx), i64::from(dy));
+    let mut inside = true;
+    for (a, b) in out.iter_mut().zip(first) {
+        let (along, across) = if b.vertical() { (dy, dx) } else { (dx, dy) };
+        let d = b.v2.0 - b.v1.0;
+        let v1 = b.v1.0 + along * d - across * side;
+        let v2 = v1 + d;
+        *a = ActiveEdge { v1: EdgeCoord(v1), v2: EdgeCoord(v2), ..*b };
+        let (lo, hi) = (v1.min(v2), v1.max(v2));
+        let (near, far) = (hi <= 0, lo >= side);
+        let (is_in, is_out) = if b.lr() { (near, far) } else { (far, near) };
+        if is_out {
+            // The rest of the list is not needed.
+            return (false, true);
+        }
+        inside &= is_in;
+    }
+    (inside, false)
+}
+
+/// The most cells each way of a start at the polygon's size
+/// ([`CellProcessors::start_at_size`]).
+const MAX_START_SPAN: u32 = 4;
+/// The most cells of a start at the polygon's size.
+const MAX_START_CELLS: usize = (MAX_START_SPAN * MAX_START_SPAN) as usize;
+
+/// The Z-order index's bits of a cell's column (even positions) and of its row (odd).
+const MORTON_X: usize = 0x5555_5555_5555_5555u64 as usize;
+/// See [`MORTON_X`].
+const MORTON_Y: usize = !MORTON_X;
+
+/// The cells of a block of one or two columns (`wide`) and one or two rows (`tall`)
+/// from cell `(x0, y0)` of one level, as `(z, x, y)` with `z` the Z-order index, in Z
+/// order (the order the descent visits them; the first `count` entries). A 2 x 2 block
+/// goes row by row unless the border between its columns is that of a larger cell
+/// than the border between its rows (`x0` ends in more one bits than `y0`): then column
+/// by column (`block_is_in_z_order` checks it against a sort). The neighbours' indices
+/// come from the first's by a carry through the column's or the row's bits.
+#[inline(always)]
+fn block_in_z_order(x0: u32, y0: u32, wide: bool, tall: bool) -> ([(usize, u32, u32); 4], usize) {
+    let z0 = morton(x0, y0);
+    let zx = ((z0 | MORTON_Y).wrapping_add(1) & MORTON_X) | (z0 & MORTON_Y);
+    let zy = ((z0 | MORTON_X).wrapping_add(2) & MORTON_Y) | (z0 & MORTON_X);
+    let zxy = ((zx | MORTON_X).wrapping_add(2) & MORTON_Y) | (zx & MORTON_X);
+    let (right, below, corner) = ((zx, x0 + 1, y0), (zy, x0, y0 + 1), (zxy, x0 + 1, y0 + 1));
+    let first = (z0, x0, y0);
+    match (wide, tall) {
+        (false, false) => ([first; 4], 1),
+        (true, false) => ([first, right, first, first], 2),
+        (false, true) => ([first, below, first, first], 2),
+        (true, true) if x0.trailing_ones() > y0.trailing_ones() => ([first, below, right, corner], 4),
+        (true, true) => ([first, right, below, corner], 4),
+    }
+}
+
+/// A start cell's key for [`CellProcessors::start_at_size`]'s sort: its Z-order index
+/// `z` above its place `(dx, dy)` in the block (each below [`MAX_START_SPAN`]).
+#[inline(always)]
+fn start_key(z: usize, dx: u32, dy: u32) -> u64 {
+    (z as u64) << 8 | u64::from(dx) << 4 | u64::from(dy)
+}
+
 /// The children of `cell` (bit `c = dx + 2 dy`) that meet the box `bbox` (pixels,
-/// `[x0, x1) x [y0, y1)`, not empty), the children's cells being `2^shift` pixels.
+/// `[x0, x1) x [y0, y1)`, not empty), the children's cells being `2^shift` pixels,
+/// given that `cell` itself meets the box (every cell the descent splits does: the
+/// starting cells hold or meet it, and a child the box misses is not descended). Then
+/// the box reaches the cell's first column of children when it starts before the
+/// cell's middle pixel line, and its second when it ends after it: one comparison
+/// a column and a row against the middle lines, and a 16-entry table.
 #[inline(always)]
 fn children_in_box(cell: Cell, shift: u32, bbox: [u32; 4]) -> u8 {
     let [x0, x1, y0, y1] = bbox;
-    // The children's columns and rows the box spans, against the cell's two.
-    let (cx, cy) = (2 * cell.x, 2 * cell.y);
-    let (lx, hx, ly, hy) = (x0 >> shift, (x1 - 1) >> shift, y0 >> shift, (y1 - 1) >> shift);
-    let columns = u8::from(lx <= cx && cx <= hx) | u8::from(lx <= cx + 1 && cx < hx) << 1;
-    let rows = u8::from(ly <= cy && cy <= hy) | u8::from(ly <= cy + 1 && cy < hy) << 1;
-    (columns * 0b0101) & (if rows & 1 != 0 { 0b0011 } else { 0 } | if rows & 2 != 0 { 0b1100 } else { 0 })
+    // The cell's middle lines, between its two columns and its two rows of children.
+    let (mx, my) = ((2 * cell.x + 1) << shift, (2 * cell.y + 1) << shift);
+    let columns = u32::from(x0 < mx) | u32::from(x1 > mx) << 1;
+    let rows = u32::from(y0 < my) | u32::from(y1 > my) << 1;
+    BOX_CHILDREN[(columns | rows << 2) as usize]
 }
+
+/// [`children_in_box`]'s table: at `columns | rows << 2` (bit 0: the first column or
+/// row of children, bit 1 the second), the children of those columns and rows.
+const BOX_CHILDREN: [u8; 16] = {
+    let mut table = [0u8; 16];
+    let mut i = 0;
+    while i < 16 {
+        let (columns, rows) = (i as u8 & 3, (i >> 2) as u8 & 3);
+        let mut c = 0;
+        while c < 4 {
+            if columns >> (c & 1) & 1 == 1 && rows >> (c >> 1) & 1 == 1 {
+                table[i] |= 1 << c;
+            }
+            c += 1;
+        }
+        i += 1;
+    }
+    table
+};
 
 /// One step of the SPP's `q` (an eighth of a pixel, [`SPP_V_BITS`]) in
 /// [`EdgeCoord`] units: V further apart than this rounds to different `q`.
@@ -1409,8 +1542,69 @@ mod tests {
         }
     }
 
+    /// [`derive_start_list`] gives [`ActiveEdge::at_cell`]'s values for the cells of a
+    /// 3 x 3 block from its first cell's, and the IN and OUT of every edge's codes:
+    /// random edges of both TG and LR, cells of several levels.
+    #[test]
+    fn start_lists_are_at_cell() {
+        let snap = i64::from(SNAP_ONE);
+        let root_side = 2048;
+        let mut next = xorshift(0x9E37_79B9_7F4A_7C15_u64);
+        let mut checked = 0;
+        for k in 0..4000 {
+            // Edges anywhere on a 2048-pixel screen, up to 200 pixels long each way.
+            let a = (next(2048 * snap as u64) as i64, next(2048 * snap as u64) as i64);
+            let b = (
+                (a.0 + next(400 * snap as u64) as i64 - 200 * snap).clamp(0, 2048 * snap - 1),
+                (a.1 + next(400 * snap as u64) as i64 - 200 * snap).clamp(0, 2048 * snap - 1),
+            );
+            let fx = |v: (i64, i64)| (ScreenFx(v.0 as i32), ScreenFx(v.1 as i32));
+            let Some(e) = EdgeCode::new(fx(a), fx(b), k % 2 == 0, root_side) else {
+                continue;
+            };
+            let side = 8i64 << next(4);
+            // A block around the edge's first end.
+            let (cx0, cy0) = ((a.0 / snap / side - 1).max(0), (a.1 / snap / side - 1).max(0));
+            let first = ActiveEdge::at_cell(3, &e, cx0 * side, cy0 * side, side);
+            let units = EdgeCoord::pixels(side).0;
+            for dy in 0..3u32 {
+                for dx in 0..3u32 {
+                    let mut out = [ActiveEdge::EMPTY];
+                    let (inside, outside) = derive_start_list(&[first], &mut out, dx, dy, units);
+                    let (px, py) = ((cx0 + i64::from(dx)) * side, (cy0 + i64::from(dy)) * side);
+                    let want = ActiveEdge::at_cell(3, &e, px, py, side);
+                    assert_eq!(out[0], want, "cell ({dx}, {dy}) of side {side}");
+                    let (lo, hi) = (want.v1.0.min(want.v2.0), want.v1.0.max(want.v2.0));
+                    let (near, far) = (hi <= 0, lo >= units);
+                    assert_eq!((inside, outside), if want.lr() { (near, far) } else { (far, near) });
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked > 30_000, "{checked} cells checked");
+    }
+
+    /// [`block_in_z_order`] gives a block's cells with their Z-order indices, sorted
+    /// by them: every block of up to 2 x 2 cells from the first 64 x 64 cells.
+    #[test]
+    fn block_is_in_z_order() {
+        for y0 in 0..64u32 {
+            for x0 in 0..64u32 {
+                for (wide, tall) in [(false, false), (true, false), (false, true), (true, true)] {
+                    let (cells, count) = block_in_z_order(x0, y0, wide, tall);
+                    let mut want: Vec<(usize, u32, u32)> = (y0..=y0 + u32::from(tall))
+                        .flat_map(|y| (x0..=x0 + u32::from(wide)).map(move |x| (morton(x, y), x, y)))
+                        .collect();
+                    want.sort_unstable();
+                    assert_eq!(&cells[..count], &want[..], "block at ({x0}, {y0}), {wide} {tall}");
+                }
+            }
+        }
+    }
+
     /// [`children_in_box`] is the children whose pixel squares meet the box: every
-    /// box of a 32-pixel square around cells of sides 2-16.
+    /// box of a 32-pixel square that meets the cell (its precondition), around cells
+    /// of sides 2-16.
     #[test]
     fn children_in_box_meet_the_box() {
         for shift in 1..=3u32 {
@@ -1426,6 +1620,11 @@ mod tests {
                             w | u8::from(meets) << c
                         });
                         let bbox = [x0, x1, y0, y1];
+                        // Its precondition: the cell (pixels `2 side .. 4 side`) meets the box.
+                        let meets_cell = 2 * side < x1 && 4 * side > x0 && 2 * side < y1 && 4 * side > y0;
+                        if !meets_cell {
+                            continue;
+                        }
                         assert_eq!(children_in_box(cell, shift, bbox), want, "shift {shift}, box {bbox:?}");
                     }
                 }
@@ -1577,7 +1776,7 @@ mod tests {
                 .collect();
             let mut want = Vec::new();
             plain_descent(gq.root_level, start, active, &mut want);
-            if start.level + 2 < gq.root_level && gq.size_level(bbox) >= start.level + 2 {
+            if start.level + 1 < gq.root_level && gq.size_level(bbox) > start.level {
                 sized += 1;
             }
             assert_eq!(got, want, "triangle {p:?}");
