@@ -170,21 +170,11 @@ fn line_indices_sse2(v1: i64, slope: i64) -> [usize; 4] {
 #[inline]
 fn line_index_lanes_sse2(v1: i64, slope: i64) -> std::arch::x86_64::__m128i {
     use std::arch::x86_64::{
-        _mm_add_epi16, _mm_add_epi64, _mm_castps_si128, _mm_castsi128_ps, _mm_max_epi16, _mm_min_epi16,
-        _mm_mullo_epi16, _mm_packs_epi32, _mm_set1_epi16, _mm_set1_epi64x, _mm_set_epi64x, _mm_shuffle_ps,
-        _mm_srli_epi64, _mm_srli_si128, _mm_sub_epi16,
+        _mm_add_epi16, _mm_max_epi16, _mm_min_epi16, _mm_mullo_epi16, _mm_packs_epi32, _mm_set1_epi16, _mm_srli_si128,
+        _mm_sub_epi16,
     };
-    const SHIFT: i32 = (EDGE_FRAC_BITS - SPP_V_BITS) as i32;
-    const HALF: i64 = 1 << (SHIFT - 1);
-    // `round_q` of V on lines 0, 1 | 2, 3 | 4, (5): each 64-bit lane's low half.
-    let step = _mm_set1_epi64x(slope * 2);
-    let l01 = _mm_add_epi64(_mm_set_epi64x(v1 + slope, v1), _mm_set1_epi64x(HALF));
-    let l23 = _mm_add_epi64(l01, step);
-    let l45 = _mm_add_epi64(l23, step);
-    let (l01, l23, l45) = (_mm_srli_epi64::<SHIFT>(l01), _mm_srli_epi64::<SHIFT>(l23), _mm_srli_epi64::<SHIFT>(l45));
-    // The low halves of lines 0..3 as four i32, then with line 4's to eight i16.
-    const LOW_HALVES: i32 = 0b10_00_10_00;
-    let q0123 = _mm_castps_si128(_mm_shuffle_ps::<LOW_HALVES>(_mm_castsi128_ps(l01), _mm_castsi128_ps(l23)));
+    // `round_q` of V on lines 0..4, then with line 4's to eight i16.
+    let (q0123, l45) = shifted_lines_sse2::<{ 1 << (SHIFT_Q - 1) }>(v1, slope);
     let q = _mm_packs_epi32(q0123, l45);
     let q = _mm_min_epi16(_mm_max_epi16(q, _mm_set1_epi16(ROW_Q_MIN as i16)), _mm_set1_epi16(ROW_Q_MAX as i16));
     let line = _mm_sub_epi16(q, _mm_set1_epi16(ROW_Q_MIN as i16));
@@ -205,22 +195,44 @@ fn line_index_lanes_sse2(v1: i64, slope: i64) -> std::arch::x86_64::__m128i {
 #[inline]
 fn line_index_lanes_sse41(v1: i64, slope: i64) -> std::arch::x86_64::__m128i {
     use std::arch::x86_64::{
-        _mm_add_epi16, _mm_add_epi64, _mm_castps_si128, _mm_castsi128_ps, _mm_min_epu16, _mm_mullo_epi16,
-        _mm_packus_epi32, _mm_set1_epi16, _mm_set1_epi64x, _mm_set_epi64x, _mm_shuffle_ps, _mm_srli_epi64,
-        _mm_srli_si128,
+        _mm_add_epi16, _mm_min_epu16, _mm_mullo_epi16, _mm_packus_epi32, _mm_set1_epi16, _mm_srli_si128,
     };
-    const SHIFT: i32 = (EDGE_FRAC_BITS - SPP_V_BITS) as i32;
     // Half a step up (the rounding), then `-ROW_Q_MIN` steps (the clamp's origin).
-    const BIAS: i64 = (1 << (SHIFT - 1)) - ((ROW_Q_MIN as i64) << SHIFT);
+    const BIAS: i64 = (1 << (SHIFT_Q - 1)) - ((ROW_Q_MIN as i64) << SHIFT_Q);
+    let (q0123, l45) = shifted_lines_sse2::<BIAS>(v1, slope);
+    let line = _mm_min_epu16(_mm_packus_epi32(q0123, l45), _mm_set1_epi16((ROW_Q_COUNT - 1) as i16));
+    _mm_add_epi16(_mm_mullo_epi16(line, _mm_set1_epi16(ROW_Q_COUNT as i16)), _mm_srli_si128::<2>(line))
+}
+
+/// The shift from an edge's V to the SPP's `q` (eighths of a pixel).
+const SHIFT_Q: i32 = (EDGE_FRAC_BITS - SPP_V_BITS) as i32;
+
+/// `(V_k + BIAS) >> SHIFT_Q` of an edge's lines `k` = 0..4 (V on line 0 `v1`, the
+/// slope `slope` a line), shifted logically in 64-bit lanes (the low 32 bits of a
+/// logical and an arithmetic shift agree): lines 0..3's low halves as four i32 in
+/// the first register, line 4's (and 5's) 64-bit lanes in the second, for a pack.
+/// The common part of [`line_index_lanes_sse2`] and [`line_index_lanes_sse41`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "sse2")]
+#[inline]
+fn shifted_lines_sse2<const BIAS: i64>(
+    v1: i64,
+    slope: i64,
+) -> (std::arch::x86_64::__m128i, std::arch::x86_64::__m128i) {
+    use std::arch::x86_64::{
+        _mm_add_epi64, _mm_castps_si128, _mm_castsi128_ps, _mm_set1_epi64x, _mm_set_epi64x, _mm_shuffle_ps,
+        _mm_srli_epi64,
+    };
+    // Lines 0, 1 | 2, 3 | 4, (5): each 64-bit lane's low half.
     let step = _mm_set1_epi64x(slope * 2);
     let l01 = _mm_add_epi64(_mm_set_epi64x(v1 + slope, v1), _mm_set1_epi64x(BIAS));
     let l23 = _mm_add_epi64(l01, step);
     let l45 = _mm_add_epi64(l23, step);
-    let (l01, l23, l45) = (_mm_srli_epi64::<SHIFT>(l01), _mm_srli_epi64::<SHIFT>(l23), _mm_srli_epi64::<SHIFT>(l45));
+    let (l01, l23, l45) =
+        (_mm_srli_epi64::<SHIFT_Q>(l01), _mm_srli_epi64::<SHIFT_Q>(l23), _mm_srli_epi64::<SHIFT_Q>(l45));
     const LOW_HALVES: i32 = 0b10_00_10_00;
     let q0123 = _mm_castps_si128(_mm_shuffle_ps::<LOW_HALVES>(_mm_castsi128_ps(l01), _mm_castsi128_ps(l23)));
-    let line = _mm_min_epu16(_mm_packus_epi32(q0123, l45), _mm_set1_epi16((ROW_Q_COUNT - 1) as i16));
-    _mm_add_epi16(_mm_mullo_epi16(line, _mm_set1_epi16(ROW_Q_COUNT as i16)), _mm_srli_si128::<2>(line))
+    (q0123, l45)
 }
 
 // What the unchecked reads of `line_index_lanes_sse41`'s indices rest on.
@@ -1703,7 +1715,7 @@ fn near_end_cell_at_sse41(line: &ExactLine, px: u32, py: u32, t: std::arch::x86_
 fn vertex_near_avx2(t: std::arch::x86_64::__m128i, vertical: bool) -> u16 {
     use std::arch::x86_64::{
         _mm256_broadcastq_epi64, _mm256_castsi256_si128, _mm256_cmpeq_epi16, _mm256_extracti128_si256,
-        _mm256_min_epu16, _mm256_set1_epi16, _mm256_setr_epi16, _mm256_setr_epi8, _mm256_shuffle_epi8,
+        _mm256_min_epu16, _mm256_set1_epi16, _mm256_set1_epi64x, _mm256_setr_epi8, _mm256_shuffle_epi8,
         _mm256_sub_epi16, _mm_movemask_epi8, _mm_packs_epi16, _mm_packs_epi32,
     };
     const ONE: i16 = SNAP_ONE as i16;
@@ -1714,24 +1726,10 @@ fn vertex_near_avx2(t: std::arch::x86_64::__m128i, vertical: bool) -> u16 {
     let spread = _mm256_setr_epi8(
         0, 1, 0, 1, 0, 1, 0, 1, 2, 3, 2, 3, 2, 3, 2, 3, 4, 5, 4, 5, 4, 5, 4, 5, 6, 7, 6, 7, 6, 7, 6, 7,
     );
-    let steps = _mm256_setr_epi16(
-        0,
-        ONE,
-        2 * ONE,
-        3 * ONE,
-        0,
-        ONE,
-        2 * ONE,
-        3 * ONE,
-        0,
-        ONE,
-        2 * ONE,
-        3 * ONE,
-        0,
-        ONE,
-        2 * ONE,
-        3 * ONE,
-    );
+    // Each group of four lanes `0, ONE, 2 ONE, 3 ONE`: the pixel columns' (rows')
+    // left (top) borders.
+    const STEPS: i64 = (ONE as i64) << 16 | (2 * ONE as i64) << 32 | (3 * ONE as i64) << 48;
+    let steps = _mm256_set1_epi64x(STEPS);
     let d = _mm256_sub_epi16(_mm256_shuffle_epi8(t, spread), steps);
     let within = _mm256_cmpeq_epi16(_mm256_min_epu16(d, _mm256_set1_epi16(SPAN)), d);
     let bits =
