@@ -1130,25 +1130,18 @@ impl FrameBuilder<'_> {
                 let eye = [a, b, c];
                 let plane_eye = eye_plane(&eye);
                 let screen = eye.map(|v| view.project(v.position));
-                let source =
-                    Source { kind: PrimitiveKind::Face, material: face.material, ids: (face.instance, face.face) };
-                // SAFETY: `face_body::<true>` runs only in `face_avx2`, after detection.
-                #[allow(unsafe_code, reason = "the AVX2 set-up in the face path compiled for AVX2")]
-                let ok = unsafe {
-                    self.setup.add_face_with::<AVX2>(
-                        source,
-                        Some(material),
-                        material.color,
-                        &plane_eye,
-                        &eye,
-                        &screen,
-                        &self.f.model_to_eye[face.instance as usize],
-                        self.out,
-                    )
-                };
-                if !ok {
-                    counters.degenerate += 1;
-                }
+                let model_to_eye = &self.f.model_to_eye[face.instance as usize];
+                Self::set_up_face::<AVX2>(
+                    &mut self.setup,
+                    self.out,
+                    counters,
+                    face,
+                    material,
+                    model_to_eye,
+                    &plane_eye,
+                    &eye,
+                    &screen,
+                );
                 return;
             }
             scratch.eye.clear();
@@ -1206,19 +1199,50 @@ impl FrameBuilder<'_> {
             }
             &scratch.window
         };
+        let model_to_eye = &self.f.model_to_eye[face.instance as usize];
+        Self::set_up_face::<AVX2>(
+            &mut self.setup,
+            self.out,
+            counters,
+            face,
+            material,
+            model_to_eye,
+            &plane_eye,
+            &scratch.eye,
+            outline,
+        );
+    }
+
+    /// A face's set-up into the frame list ([`Setup::add_face_with`]), counted as
+    /// degenerate if it has none: the end of both of [`FrameBuilder::face_body`]'s
+    /// paths (its fields apart, as the body holds others borrowed).
+    #[allow(clippy::too_many_arguments, reason = "the face body's registers and its builder's fields")]
+    #[inline(always)]
+    fn set_up_face<const AVX2: bool>(
+        setup: &mut Setup,
+        out: &mut FrameList,
+        counters: &mut GpCounters,
+        face: &FaceRecord,
+        material: &crate::db::Material,
+        model_to_eye: &DMat4,
+        plane_eye: &Plane,
+        eye: &[EyeVertex],
+        outline: &[DVec2],
+    ) {
         let source = Source { kind: PrimitiveKind::Face, material: face.material, ids: (face.instance, face.face) };
-        // SAFETY: `face_body::<true>` runs only in `face_avx2`, after detection.
+        // SAFETY: with `AVX2` this runs only in `face_avx2` (through `face_body::<true>`),
+        // after detection.
         #[allow(unsafe_code, reason = "the AVX2 set-up in the face path compiled for AVX2")]
         let ok = unsafe {
-            self.setup.add_face_with::<AVX2>(
+            setup.add_face_with::<AVX2>(
                 source,
                 Some(material),
                 material.color,
-                &plane_eye,
-                &scratch.eye,
+                plane_eye,
+                eye,
                 outline,
-                &self.f.model_to_eye[face.instance as usize],
-                self.out,
+                model_to_eye,
+                out,
             )
         };
         if !ok {
