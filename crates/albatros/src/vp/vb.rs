@@ -2886,9 +2886,10 @@ const LOG8_WINDOW: usize = SHUFFLE_TABLE;
 /// [`LOG8_WINDOW`] and each component's addresses `hi - T[0] + T[d]` (as `u16`, as
 /// the portable pass reads them) lie within a window from their least one, `T` is
 /// read by one `vpshufb` from `T[0..16]` and the output by one `vpshufb` per
-/// component from its window of the gamma table, the same entries as the
-/// portable pass reads (zero's address, 61440, reads the zeros there: no masking);
-/// then the bytes packed into place.
+/// component from its window of the gamma table (two and a blend where a
+/// component's addresses span up to [`LOG8_WIDE_WINDOW`]: [`gamma_pick_avx2`]), the
+/// same entries as the portable pass reads (zero's address, 61440, reads the zeros
+/// there: no masking); then the bytes packed into place.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
@@ -2939,7 +2940,10 @@ fn read_out_log8_pass2_avx2(
     let largest = _mm256_max_epu16(_mm256_max_epu16(address[0], address[1]), _mm256_max_epu16(address[2], address[3]));
     let largest = _mm256_max_epu16(largest, _mm256_permute2x128_si256::<1>(largest, largest));
     let largest = _mm256_max_epu16(largest, _mm256_shuffle_epi32::<0b01_00_11_10>(largest));
-    far = _mm256_subs_epu16(_mm256_sub_epi16(largest, least), below_window);
+    let span = _mm256_sub_epi16(largest, least);
+    far = _mm256_subs_epu16(span, below_window);
+    let wide = _mm256_testz_si256(far, far) == 0;
+    far = _mm256_subs_epu16(span, _mm256_set1_epi16((LOG8_WIDE_WINDOW - 1) as i16));
     // (The three lanes by extracts: a store of the register to a buffer on the
     // stack was split in two halves by the build's tuning and reloaded.)
     let least_low = _mm256_castsi256_si128(least);
@@ -2948,24 +2952,68 @@ fn read_out_log8_pass2_avx2(
         _mm_extract_epi16::<1>(least_low) as usize,
         _mm_extract_epi16::<2>(least_low) as usize,
     ];
-    if _mm256_testz_si256(far, far) == 0 || bases.iter().any(|&b| b > LOG8_ADDRESSES - LOG8_WINDOW) {
+    let reach = if wide { LOG8_WIDE_WINDOW } else { LOG8_WINDOW };
+    if _mm256_testz_si256(far, far) == 0 || bases.iter().any(|&b| b > LOG8_ADDRESSES - reach) {
         return read_out_log8_pass2_outlined(out, run, pairs, table);
     }
     let windows = bases.map(|b| bytes16_avx2(&table[b..]));
+    let packed = if wide {
+        let upper = bases.map(|b| bytes16_avx2(&table[b + LOG8_WINDOW..]));
+        gamma_pick_avx2::<true>(&address, least, windows, upper)
+    } else {
+        gamma_pick_avx2::<false>(&address, least, windows, windows)
+    };
+    store_pixels_avx2(out, packed);
+}
+
+/// The entries of a gamma window a component's addresses over a run may span for
+/// [`read_out_log8_pass2_avx2`] to read them by two byte shuffles and a blend (two
+/// [`LOG8_WINDOW`]s): on default, of the non-flat runs whose differences are below
+/// the window, ~10 % have a component's addresses over more than one window.
+const LOG8_WIDE_WINDOW: usize = 2 * LOG8_WINDOW;
+
+/// The output bytes of [`read_out_log8_pass2_avx2`]'s run from its gamma addresses
+/// (four registers of the run's 16 pixels' lanes) less each component's `least`:
+/// each component's entry from its window (`lower`, the table from the least
+/// address on) by one byte shuffle, or with `WIDE` from the two windows `lower` and
+/// `upper` (the next [`LOG8_WINDOW`] entries) by two and a blend on the index's
+/// bit 4; the three components' lanes blended into one register and packed to
+/// bytes, pixels `0, 1, 4, 5 | 2, 3, 6, 7` of each pair of registers.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn gamma_pick_avx2<const WIDE: bool>(
+    address: &[__m256i; 4],
+    least: __m256i,
+    lower: [__m256i; 3],
+    upper: [__m256i; 3],
+) -> [__m256i; 2] {
+    // (A lane's index with its high byte's top bit set: `vpshufb` gives 0 there, so
+    // a 16-bit lane reads one entry.)
+    let high_zero = _mm256_set1_epi16(0xFF00u16 as i16);
     // Lanes of R and of G (the rest, B and the spare lanes, take B's window).
     let (red, green) = (_mm256_set1_epi64x(0xFFFF), _mm256_set1_epi64x(0xFFFF_0000));
-    let mut packed = [_mm256_setzero_si256(); REGISTERS / 2];
+    let mut packed = [_mm256_setzero_si256(); 2];
     for (k, packed) in packed.iter_mut().enumerate() {
         let index = |r: usize| _mm256_or_si256(_mm256_sub_epi16(address[r], least), high_zero);
         let (i0, i1) = (index(2 * k), index(2 * k + 1));
         let pick = |i: __m256i| {
-            let rgb = windows.map(|w| _mm256_shuffle_epi8(w, i));
+            let entry = |c: usize| {
+                let low = _mm256_shuffle_epi8(lower[c], i);
+                if WIDE {
+                    // (Bit 4 of the low byte moved to its top bit, which the blend
+                    // reads; the high bytes are 0 in both.)
+                    _mm256_blendv_epi8(low, _mm256_shuffle_epi8(upper[c], i), _mm256_slli_epi16::<3>(i))
+                } else {
+                    low
+                }
+            };
+            let rgb = [entry(0), entry(1), entry(2)];
             _mm256_blendv_epi8(_mm256_blendv_epi8(rgb[2], rgb[1], green), rgb[0], red)
         };
-        // Bytes of pixels 0, 1, 4, 5 | 2, 3, 6, 7 of the two registers' 8 pixels.
         *packed = _mm256_packus_epi16(pick(i0), pick(i1));
     }
-    store_pixels_avx2(out, packed);
+    packed
 }
 
 /// Stores 16 pixels' output bytes, each pixel's R, G, B in the first three bytes of
