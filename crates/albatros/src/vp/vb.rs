@@ -1069,7 +1069,7 @@ impl VideoBuffer {
             Memory::Log8 { scale, codes } => {
                 let encoder = scale.encoder8.as_ref().expect("the 8-bit encoder").tables();
                 let word = color.to_array().map(|c| u16::from(encoder.encode(c)));
-                accumulate_log_flat(codes, width, vis, LogF1::new(scale), word);
+                accumulate_log8_flat(codes, width, vis, LogF1::new(scale), word);
             }
             Memory::Float(_) | Memory::Linear { .. } => self.accumulate(vis, &CellColors::splat(color)),
         }
@@ -1099,7 +1099,7 @@ impl VideoBuffer {
         let width = self.width as usize;
         match &mut self.memory {
             Memory::Log { scale, codes } => accumulate_log_flat(codes, width, vis, LogF1::new(scale), flat.word),
-            Memory::Log8 { scale, codes } => accumulate_log_flat(codes, width, vis, LogF1::new(scale), flat.word),
+            Memory::Log8 { scale, codes } => accumulate_log8_flat(codes, width, vis, LogF1::new(scale), flat.word),
             Memory::Float(_) | Memory::Linear { .. } => self.accumulate(vis, &CellColors::splat(flat.color)),
         }
     }
@@ -1458,6 +1458,110 @@ fn accumulate_log_flat<W: LogWord>(codes: &mut [W], width: usize, vis: &Visible,
         return;
     }
     accumulate_log::<_, false>(codes, width, vis, f1, |_| word);
+}
+
+/// [`accumulate_log_flat`] of the 8-bit code: a cell of whole first fragments
+/// filled with the word, any other pixel by pixel in SSE4.1 lanes
+/// ([`accumulate_log8_flat_sse41`]) where the build has it (x86-64-v2), else by the
+/// portable [`accumulate_log`].
+#[inline(always)]
+fn accumulate_log8_flat(codes: &mut [Word8], width: usize, vis: &Visible, f1: LogF1, word: [u16; 3]) {
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse4.1"))]
+    if !(vis.first == FULL && vis.sets == [FULL; 16]) {
+        // SAFETY: `accumulate_log8_flat_sse41` needs SSE4.1, which the build enables
+        // for every function (this branch is compiled only then).
+        #[allow(unsafe_code, reason = "a function compiled for SSE4.1 in a build that requires it")]
+        unsafe {
+            return accumulate_log8_flat_sse41(codes, width, vis, &f1, Word8::pack(word));
+        }
+    }
+    accumulate_log_flat(codes, width, vis, f1, word);
+}
+
+/// [`accumulate_log`] of one word `word` for the cell, its visible pixels one by
+/// one (by their bits), each pixel's three components side by side in the 32-bit
+/// lanes of one SSE register: `from_code` of the word once for the cell; per
+/// pixel, `ln S` added, and for a later fragment eq. 4 with the stored word (`T` read
+/// at the three lanes' differences one by one), then `store` and the three low
+/// bytes packed into the word (the fourth lane, 0 in both words, stores 0). A
+/// whole first fragment stores the word as it is. The same operations on the same
+/// integers as the portable path, so the same words (tested against it). For a
+/// one-colour polygon's cells that are not whole first fragments: `many`'s
+/// triangles, of two or three visible pixels a cell, where the portable path spent
+/// ~175 instructions a pixel, each component's steps apart and a test per pixel of
+/// the cell; F1 of the whole cell in AVX2 lanes ([`f1_cell16_avx2`]) costs more than
+/// that for so few pixels (~340 a cell).
+#[cfg(all(target_arch = "x86_64", target_feature = "sse4.1"))]
+#[target_feature(enable = "sse4.1")]
+#[inline]
+fn accumulate_log8_flat_sse41(codes: &mut [Word8], width: usize, vis: &Visible, f1: &LogF1, word: Word8) {
+    let arith = f1.arith;
+    // Bytes 0, 4 and 8 (the lanes' low bytes, the codes) to bytes 0, 1, 2; byte 3 zero.
+    const NONE: i8 = -1;
+    let to_word = _mm_setr_epi8(0, 4, 8, NONE, NONE, NONE, NONE, NONE, NONE, NONE, NONE, NONE, NONE, NONE, NONE, NONE);
+    let zero_fine = _mm_set1_epi32(LogFine::ZERO.0);
+    // `LogFine::from_code` of the four lanes.
+    let from_code = |q: __m128i| {
+        _mm_blendv_epi8(
+            _mm_slli_epi32::<{ LOG_FRAC_BITS as i32 }>(q),
+            zero_fine,
+            _mm_cmpeq_epi32(q, _mm_setzero_si128()),
+        )
+    };
+    let new = from_code(_mm_cvtepu8_epi32(_mm_cvtsi32_si128(word as i32)));
+    let (round, one, below) =
+        (_mm_set1_epi32(FINE_PER_CODE / 2 - 1), _mm_set1_epi32(arith.one), _mm_set1_epi32(arith.floor - 1));
+    let cap = _mm_set1_epi32(SOFTPLUS_PADDED as i32 - 1);
+    let mut pixels = visible_pixels(vis);
+    while pixels != 0 {
+        let i = pixels.trailing_zeros() as usize;
+        pixels &= pixels - 1;
+        let (set, first) = (vis.sets[i], vis.first >> i & 1 == 1);
+        // (A visible pixel is on the screen.)
+        let at = (vis.py as usize + i / 4) * width + vis.px as usize + i % 4;
+        let n = set.count_ones();
+        if first && n == AREA_DENOMINATOR {
+            codes[at] = word;
+            continue;
+        }
+        let ln_s = f1.ln_area[(n as usize - 1) & (AREA_DENOMINATOR as usize - 1)];
+        let mut v = _mm_add_epi32(new, _mm_set1_epi32(ln_s));
+        if !first {
+            let stored = from_code(_mm_cvtepu8_epi32(_mm_cvtsi32_si128(codes[at] as i32)));
+            let (hi, lo) = (_mm_max_epi32(v, stored), _mm_min_epi32(v, stored));
+            let d = _mm_min_epi32(_mm_sub_epi32(hi, lo), cap);
+            // `T[d]` of each lane (`d` in `0..SOFTPLUS_PADDED` after the clamp).
+            let t = |k: i32| i32::from(arith.softplus[k as usize & (SOFTPLUS_PADDED - 1)]);
+            let t = _mm_setr_epi32(
+                t(_mm_extract_epi32::<0>(d)),
+                t(_mm_extract_epi32::<1>(d)),
+                t(_mm_extract_epi32::<2>(d)),
+                t(_mm_extract_epi32::<3>(d)),
+            );
+            v = _mm_add_epi32(hi, t);
+        }
+        // `LogArith::store`.
+        let odd = _mm_and_si128(_mm_srai_epi32::<{ LOG_FRAC_BITS as i32 }>(v), _mm_set1_epi32(1));
+        let rounded = _mm_srai_epi32::<{ LOG_FRAC_BITS as i32 }>(_mm_add_epi32(_mm_add_epi32(v, round), odd));
+        let code = _mm_min_epi32(_mm_max_epi32(rounded, _mm_set1_epi32(1)), one);
+        let code = _mm_and_si128(code, _mm_cmpgt_epi32(v, below));
+        codes[at] = _mm_cvtsi128_si32(_mm_shuffle_epi8(code, to_word)) as u32;
+    }
+}
+
+/// The pixels of a cell with a visible subpixel, bit `4 y + x`.
+#[cfg(all(target_arch = "x86_64", target_feature = "sse4.1"))]
+#[inline(always)]
+fn visible_pixels(vis: &Visible) -> u32 {
+    // SAFETY: the build has SSE2 (x86-64's baseline); `vis.sets` is 16 `u16`, the 32
+    // bytes the loads read.
+    #[allow(unsafe_code, reason = "unaligned loads of an array of two registers' size")]
+    unsafe {
+        let w = vis.sets.as_ptr().cast::<__m128i>();
+        let zero = _mm_setzero_si128();
+        let (lo, hi) = (_mm_cmpeq_epi16(_mm_loadu_si128(w), zero), _mm_cmpeq_epi16(_mm_loadu_si128(w.add(1)), zero));
+        !(_mm_movemask_epi8(_mm_packs_epi16(lo, hi)) as u32) & 0xFFFF
+    }
 }
 
 /// F1 of the 8-bit code for one cell of shaded colours ([`accumulate_log`] of
@@ -4154,6 +4258,56 @@ mod tests {
                 copy(got, w, &vis, &colors, f1, encoder);
                 assert_eq!(*got, expect, "{name}, round {round}");
             }
+        }
+    }
+
+    /// The 8-bit F1 of one word for a cell ([`accumulate_log8_flat`]: pixel by
+    /// pixel in SSE4.1 lanes where the build has them) gives the portable one's
+    /// words ([`accumulate_log_flat`]): random cells (whole and partial pixels,
+    /// first writes and read-modify-writes, whole rows and cells of first fragments,
+    /// cells past the right and bottom edges) of random colours, each round on the
+    /// words the rounds before left.
+    #[test]
+    fn accumulate_log8_flat_matches_portable() {
+        let s = LogScale::get(PAIR_MEANS_BITS);
+        let (f1, encoder) = (LogF1::new(s), s.encoder8.as_ref().expect("the 8-bit encoder").tables());
+        let mut rng = Rng(0xF1_A7);
+        // 10 x 7: cells reaching past the right and bottom edges.
+        let (w, h) = (10usize, 7usize);
+        let (mut expect, mut got) = (vec![0u32; w * h], vec![0u32; w * h]);
+        for round in 0..20_000 {
+            let (px, py) = ((rng.next() % 3) as u32 * 4, (rng.next() % 2) as u32 * 4);
+            let mut sets: [u16; 16] = std::array::from_fn(|_| match rng.next() % 5 {
+                0 | 1 => 0,
+                2 => FULL,
+                _ => rng.next() as u16,
+            });
+            let mut first = rng.next() as u16;
+            for row in 0..4 {
+                if rng.next().is_multiple_of(4) {
+                    sets[4 * row..4 * row + 4].fill(FULL);
+                    first |= ROW_BITS << (4 * row);
+                }
+            }
+            if round % 11 == 0 {
+                (sets, first) = ([FULL; 16], FULL);
+            }
+            for (i, set) in sets.iter_mut().enumerate() {
+                if px as usize + i % 4 >= w || py as usize + i / 4 >= h {
+                    *set = 0;
+                }
+            }
+            let color: [f32; 3] = std::array::from_fn(|_| match rng.next() % 6 {
+                0 => 0.0,
+                1 => 1.0,
+                2 => 1e-3,
+                _ => (rng.next() % 100_000) as f32 / 100_000.0,
+            });
+            let word = color.map(|c| u16::from(encoder.encode(c)));
+            let vis = Visible { px, py, sets, first, covered: false };
+            accumulate_log_flat(&mut expect, w, &vis, f1, word);
+            accumulate_log8_flat(&mut got, w, &vis, f1, word);
+            assert_eq!(got, expect, "round {round}");
         }
     }
 
