@@ -12,6 +12,9 @@
 //! Transparency (P2 fig. 3): a face of code `t` keeps only a dither-thinned subset of
 //! density `1 - t/64` of its subpixels ([`thinning`]), so faces behind fill the rest.
 //!
+//! What the SPPs take of a polygon (its thinning pattern, its box as the AVX2
+//! clip's lanes) is made once before its descent ([`SppPolygon`]), not per fragment.
+//!
 //! Bit layout of a pixel's set: bit `4 sy + sx`, subpixel column `sx`, row `sy` from
 //! the pixel's top-left. A cell's 16 pixels are indexed `4 y + x` likewise.
 
@@ -239,10 +242,11 @@ fn shifted_lines_sse2<const BIAS: i64>(
         _mm_add_epi64, _mm_and_si128, _mm_castps_si128, _mm_castsi128_ps, _mm_set1_epi64x, _mm_set_epi64x,
         _mm_shuffle_ps, _mm_srli_epi64,
     };
-    // Lines 0, 1 | 2, 3 | 4, (5): each 64-bit lane's low half. Made in the vector
-    // unit from the broadcasts of `v1` and `slope` (each one load), the second lane's
-    // slope by a mask: 3 instructions an edge fewer than the sums in general
-    // registers moved across (the same numbers: wrapping sums in any order).
+    // Lines 0, 1 | 2, 3 | 4, (5): each 64-bit lane's low half. Made from the
+    // broadcasts of `v1` and `slope` (the slope loaded once, the second lane's by a
+    // mask, which the compiler makes a byte shift) rather than from the sums in
+    // general registers moved across: about an instruction an edge fewer as
+    // compiled (the same numbers: wrapping sums in any order).
     let slopes = _mm_set1_epi64x(slope);
     let step = _mm_add_epi64(slopes, slopes);
     let firsts = _mm_add_epi64(_mm_and_si128(slopes, _mm_set_epi64x(-1, 0)), _mm_set1_epi64x(BIAS));
