@@ -323,6 +323,7 @@ impl VideoProcessor {
                 let opaque = poly.transparency == 0;
                 let gp = GqPolygon { edges, opaque, bbox };
                 sink.polygon(index);
+                let spp_poly = spp.polygon(bbox, poly.transparency);
                 let mut fragment = |frag: gq::Fragment| {
                     if !STATS && frag.active.is_empty() {
                         // With counting off, cells no edge crosses (wholly inside, up to
@@ -334,7 +335,7 @@ impl VideoProcessor {
                             let c = cells.trailing_zeros();
                             cells &= cells - 1;
                             let (px, py) = (frag.px + spp::CELL_SIDE * (c & 1), frag.py + spp::CELL_SIDE * (c >> 1));
-                            let vis = spp.inside(px, py, poly.transparency);
+                            let vis = spp.inside(px, py, &spp_poly);
                             if hierarchical && !opaque && vis.covered {
                                 covered_cells.push(gq::morton(px / spp::CELL_SIDE, py / spp::CELL_SIDE));
                             }
@@ -347,7 +348,7 @@ impl VideoProcessor {
                         }
                         return;
                     }
-                    let vis = spp.process::<STATS>(&frag, edges, poly.transparency, &mut inner);
+                    let vis = spp.process::<STATS>(&frag, edges, &spp_poly, &mut inner);
                     if hierarchical && vis.covered {
                         covered_cells.push(gq::morton(vis.px / spp::CELL_SIDE, vis.py / spp::CELL_SIDE));
                     }

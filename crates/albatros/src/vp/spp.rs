@@ -12,6 +12,9 @@
 //! Transparency (P2 fig. 3): a face of code `t` keeps only a dither-thinned subset of
 //! density `1 - t/64` of its subpixels ([`thinning`]), so faces behind fill the rest.
 //!
+//! What the SPPs take of a polygon (its thinning pattern, its box as the AVX2
+//! clip's lanes) is made once before its descent ([`SppPolygon`]), not per fragment.
+//!
 //! Bit layout of a pixel's set: bit `4 sy + sx`, subpixel column `sx`, row `sy` from
 //! the pixel's top-left. A cell's 16 pixels are indexed `4 y + x` likewise.
 
@@ -119,6 +122,22 @@ pub struct SubpixelProcessors {
     avx2: bool,
 }
 
+/// What the SPPs take of a polygon, made once before its descent
+/// ([`SubpixelProcessors::polygon`]) rather than for each of its fragments: its
+/// thinning pattern (the AVX2 step ANDs it from here, not indexing the patterns by
+/// the code) and its box as the AVX2 clip's lanes ([`BoxLanes`]).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
+pub struct SppPolygon {
+    thin: Words16,
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code, reason = "read by the AVX2 step"))]
+    lanes: BoxLanes,
+    /// The box (pixels, [`super::bbox`]).
+    bbox: [u32; 4],
+    /// The transparency code.
+    t: u8,
+}
+
 /// Sixteen words of a cell, a pixel's each (a cell's subpixel mask, a thinning
 /// pattern), aligned to 32 bytes: the AVX2 step reads and writes them as one
 /// register, where an access the compiler cannot prove aligned it splits in two (its
@@ -220,12 +239,18 @@ fn shifted_lines_sse2<const BIAS: i64>(
     slope: i64,
 ) -> (std::arch::x86_64::__m128i, std::arch::x86_64::__m128i) {
     use std::arch::x86_64::{
-        _mm_add_epi64, _mm_castps_si128, _mm_castsi128_ps, _mm_set1_epi64x, _mm_set_epi64x, _mm_shuffle_ps,
-        _mm_srli_epi64,
+        _mm_add_epi64, _mm_and_si128, _mm_castps_si128, _mm_castsi128_ps, _mm_set1_epi64x, _mm_set_epi64x,
+        _mm_shuffle_ps, _mm_srli_epi64,
     };
-    // Lines 0, 1 | 2, 3 | 4, (5): each 64-bit lane's low half.
-    let step = _mm_set1_epi64x(slope * 2);
-    let l01 = _mm_add_epi64(_mm_set_epi64x(v1 + slope, v1), _mm_set1_epi64x(BIAS));
+    // Lines 0, 1 | 2, 3 | 4, (5): each 64-bit lane's low half. Made from the
+    // broadcasts of `v1` and `slope` (the slope loaded once, the second lane's by a
+    // mask, which the compiler makes a byte shift) rather than from the sums in
+    // general registers moved across: about an instruction an edge fewer as
+    // compiled (the same numbers: wrapping sums in any order).
+    let slopes = _mm_set1_epi64x(slope);
+    let step = _mm_add_epi64(slopes, slopes);
+    let firsts = _mm_add_epi64(_mm_and_si128(slopes, _mm_set_epi64x(-1, 0)), _mm_set1_epi64x(BIAS));
+    let l01 = _mm_add_epi64(_mm_set1_epi64x(v1), firsts);
     let l23 = _mm_add_epi64(l01, step);
     let l45 = _mm_add_epi64(l23, step);
     let (l01, l23, l45) =
@@ -530,23 +555,113 @@ fn pixel_lanes_avx2(pixels: u16) -> std::arch::x86_64::__m256i {
 /// lanes packed to 16 bits and repeated make lane `4 y + x` column `x`'s; the rows'
 /// lanes, each widened to two 16-bit lanes by the dword permute, row `y`'s; a pixel
 /// is outside when its column or its row is. `px + 3` and `py + 3` must not wrap (a
-/// pixel of a screen; so does `box_pixels`' `px + CELL_SIDE`).
-#[cfg(target_arch = "x86_64")]
+/// pixel of a screen; so does `box_pixels`' `px + CELL_SIDE`). The AVX2 step makes
+/// the box's lanes once a polygon and calls [`box_outside_at_avx2`]; this is the
+/// two together, for the tests.
+#[cfg(all(test, target_arch = "x86_64"))]
 #[target_feature(enable = "avx2")]
 #[inline]
 fn box_outside_lanes_avx2(px: u32, py: u32, bbox: [u32; 4]) -> std::arch::x86_64::__m256i {
+    box_outside_at_avx2(px, py, &BoxLanes::new(bbox))
+}
+
+/// A polygon's box as [`box_outside_at_avx2`] reads it, made once a polygon
+/// ([`SppPolygon`]): lanes 0-3 for the cell's pixel columns, 4-7 for its rows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(C, align(32))]
+struct BoxLanes {
+    /// The box's first column (row) less the lane's pixel in the cell, `x0 - i`
+    /// (wrapping): `px - (x0 - i)` is pixel `px + i`'s distance from the border.
+    start: [i32; 8],
+    /// The box's width (height), `x1 -sat x0`.
+    width: [i32; 8],
+}
+
+impl BoxLanes {
+    /// The lanes of box `bbox`: in SSE2 on x86-64 (its baseline), some 10
+    /// instructions a polygon fewer than the compiler's lanes one by one (`many` has
+    /// a million polygons); [`Self::new_plain`] elsewhere.
+    #[inline]
+    fn new(bbox: [u32; 4]) -> Self {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `new_sse2` only needs SSE2, which every x86-64 processor has.
+        #[allow(unsafe_code, reason = "a function compiled for SSE2, x86-64's baseline")]
+        unsafe {
+            Self::new_sse2(bbox)
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        Self::new_plain(bbox)
+    }
+
+    /// [`Self::new`] by its definition.
+    #[cfg_attr(target_arch = "x86_64", allow(dead_code, reason = "the definition, for the tests"))]
+    fn new_plain(bbox: [u32; 4]) -> Self {
+        let [x0, x1, y0, y1] = bbox;
+        let lane = |i: usize| if i < 4 { (x0, x1) } else { (y0, y1) };
+        BoxLanes {
+            start: std::array::from_fn(|i| lane(i).0.wrapping_sub(i as u32 & 3) as i32),
+            width: std::array::from_fn(|i| lane(i).1.saturating_sub(lane(i).0) as i32),
+        }
+    }
+
+    /// [`Self::new_plain`] in SSE2 (tested): each start a broadcast less `0, 1, 2,
+    /// 3`, the widths broadcast, stored as four aligned 16-byte halves.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "sse2")]
+    #[inline]
+    fn new_sse2(bbox: [u32; 4]) -> Self {
+        use std::arch::x86_64::{
+            __m128i, _mm_loadu_si128, _mm_set1_epi32, _mm_setr_epi32, _mm_shuffle_epi32, _mm_store_si128, _mm_sub_epi32,
+        };
+        let [x0, x1, y0, y1] = bbox;
+        // SAFETY: `bbox` is 4 `u32`, the 16 bytes the unaligned load reads.
+        #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
+        let b = unsafe { _mm_loadu_si128(bbox.as_ptr().cast()) };
+        let lanes = _mm_setr_epi32(0, 1, 2, 3);
+        let (x0s, y0s) = (_mm_shuffle_epi32::<0b00_00_00_00>(b), _mm_shuffle_epi32::<0b10_10_10_10>(b));
+        let (width, height) = (x1.saturating_sub(x0) as i32, y1.saturating_sub(y0) as i32);
+        let mut out = BoxLanes { start: [0; 8], width: [0; 8] };
+        let halves: [(&mut [i32], __m128i); 4] = {
+            let (start, width_lanes) = (&mut out.start, &mut out.width);
+            let (s0, s1) = start.split_at_mut(4);
+            let (w0, w1) = width_lanes.split_at_mut(4);
+            [
+                (s0, _mm_sub_epi32(x0s, lanes)),
+                (s1, _mm_sub_epi32(y0s, lanes)),
+                (w0, _mm_set1_epi32(width)),
+                (w1, _mm_set1_epi32(height)),
+            ]
+        };
+        for (half, v) in halves {
+            // SAFETY: each half is 4 `i32` at a multiple of 16 bytes in `BoxLanes`
+            // (aligned to 32), the 16 bytes the aligned store writes.
+            #[allow(unsafe_code, reason = "aligned stores into halves of a register's size")]
+            unsafe {
+                _mm_store_si128(half.as_mut_ptr().cast(), v);
+            }
+        }
+        out
+    }
+}
+
+/// [`box_outside_lanes_avx2`] of a box whose lanes were made once a polygon
+/// ([`BoxLanes`]): the same lanes (tested), some 12 instructions a fragment fewer
+/// than making the box's lanes again for every fragment.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn box_outside_at_avx2(px: u32, py: u32, lanes: &BoxLanes) -> std::arch::x86_64::__m256i {
     use std::arch::x86_64::{
-        _mm256_add_epi32, _mm256_cmpeq_epi32, _mm256_max_epu32, _mm256_or_si256, _mm256_packs_epi32,
+        _mm256_cmpeq_epi32, _mm256_load_si256, _mm256_max_epu32, _mm256_or_si256, _mm256_packs_epi32,
         _mm256_permute4x64_epi64, _mm256_permutevar8x32_epi32, _mm256_setr_epi32, _mm256_sub_epi32,
     };
-    let [x0, x1, y0, y1] = bbox.map(|v| v as i32);
     let (px, py) = (px as i32, py as i32);
-    let start = _mm256_setr_epi32(x0, x0, x0, x0, y0, y0, y0, y0);
-    let end = _mm256_setr_epi32(x1, x1, x1, x1, y1, y1, y1, y1);
-    let width = _mm256_sub_epi32(_mm256_max_epu32(end, start), start);
-    let pixel =
-        _mm256_add_epi32(_mm256_setr_epi32(px, px, px, px, py, py, py, py), _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3));
-    let from_start = _mm256_sub_epi32(pixel, start);
+    // SAFETY: `start` and `width` are 8 `i32` aligned to 32 bytes (`BoxLanes` is
+    // aligned to 32 and `start` 32 bytes long), the 32 bytes each aligned load reads.
+    #[allow(unsafe_code, reason = "aligned loads of arrays of a register's size")]
+    let (start, width) =
+        unsafe { (_mm256_load_si256(lanes.start.as_ptr().cast()), _mm256_load_si256(lanes.width.as_ptr().cast())) };
+    let from_start = _mm256_sub_epi32(_mm256_setr_epi32(px, px, px, px, py, py, py, py), start);
     let outside = _mm256_cmpeq_epi32(_mm256_max_epu32(from_start, width), from_start);
     // Quadwords 0, 1, 0, 1: the low half's columns (packed twice) in both halves.
     const LOW_HALF_TWICE: i32 = 0b01_00_01_00;
@@ -692,6 +807,14 @@ impl SubpixelProcessors {
     /// each has 16 open subpixels and gets exactly one first write per frame.
     pub fn open_pixels(&self) -> u64 {
         self.open_pixels
+    }
+
+    /// The SPPs' set-up for a polygon with box `bbox` (as [`super::bbox`] gives it, the
+    /// box of its fragments: [`Fragment::bbox`]) and transparency code `t`, for
+    /// [`Self::process`] and [`Self::inside`] of its fragments.
+    #[inline]
+    pub fn polygon(&self, bbox: [u32; 4], t: u8) -> SppPolygon {
+        SppPolygon { thin: self.thin[usize::from(t & 63)], lanes: BoxLanes::new(bbox), bbox, t }
     }
 
     /// The mask memory word of the cell at `(cx, cy)`.
@@ -886,28 +1009,30 @@ impl SubpixelProcessors {
         code
     }
 
-    /// Processes one fragment of a polygon with transparency code `t`: returns the
-    /// visible subpixels and updates the mask memory. Only the dispatch is inlined:
-    /// with AVX2 (and a table mode) the whole step is [`Self::process_avx2`], one call
-    /// a fragment from the VP's loop; otherwise [`Self::process_plain`].
+    /// Processes one fragment of polygon `poly` ([`Self::polygon`]; the fragment's
+    /// box is the polygon's): returns the visible subpixels and updates the mask
+    /// memory. Only the dispatch is inlined: with AVX2 (and a table mode) the whole
+    /// step is [`Self::process_avx2`], one call a fragment from the VP's loop;
+    /// otherwise [`Self::process_plain`].
     #[inline]
     pub fn process<const STATS: bool>(
         &mut self,
         frag: &Fragment,
         edges: &[EdgeCode],
-        t: u8,
+        poly: &SppPolygon,
         counters: &mut Counters,
     ) -> Visible {
+        debug_assert_eq!(frag.bbox, poly.bbox, "a fragment of another polygon");
         #[cfg(target_arch = "x86_64")]
         if self.avx2 && self.mode != SppMode::Exact {
             // SAFETY: `process_avx2` only needs the features `has_avx2` found the
             // processor to have when `self` was made (`avx2` is set nowhere else).
             #[allow(unsafe_code, reason = "a function compiled for AVX2, after detection")]
             unsafe {
-                return self.process_avx2::<STATS>(frag, edges, t, counters);
+                return self.process_avx2::<STATS>(frag, edges, poly, counters);
             }
         }
-        self.process_plain::<STATS>(frag, edges, t, counters)
+        self.process_plain::<STATS>(frag, edges, poly.t, counters)
     }
 
     /// [`Self::process`] by its definition: the fragment code ([`Self::fragment_code`]),
@@ -931,7 +1056,8 @@ impl SubpixelProcessors {
 
     /// [`Self::process_plain`] of a table mode in AVX2, the same visible sets, mask
     /// memory and counts (tested): the code in a register ([`table_code_avx2_body`]),
-    /// clipped to the box with no branch ([`box_outside_lanes_avx2`]), and the mask step on it
+    /// clipped to the box with no branch ([`box_outside_at_avx2`] of the polygon's
+    /// lanes), ANDed with the polygon's thinning pattern, and the mask step on it
     /// ([`Self::apply_avx2`]). Through memory, the code (stored as 16 `u16`, the box
     /// clip's stores of odd sizes, read back as 16-byte loads) missed the store
     /// forwarding: some 20 % of `process`'s time stood on one load; and the call
@@ -946,14 +1072,14 @@ impl SubpixelProcessors {
         &mut self,
         frag: &Fragment,
         edges: &[EdgeCode],
-        t: u8,
+        poly: &SppPolygon,
         counters: &mut Counters,
     ) -> Visible {
         use std::arch::x86_64::_mm256_andnot_si256;
         if (frag.px | frag.py) >= CELL_LIMIT_32 {
             // Beyond the 32-bit vertex paths (no screen the model supports): checked
             // once here, the checks of every edge's near end and vertex pixels fold.
-            return self.process_plain::<STATS>(frag, edges, t, counters);
+            return self.process_plain::<STATS>(frag, edges, poly.t, counters);
         }
         // Two copies of the edge loop: with and without the vertex pixels (a test an
         // edge less).
@@ -962,8 +1088,8 @@ impl SubpixelProcessors {
         } else {
             table_code_avx2_body!(&*self, frag, edges, false)
         };
-        let code = _mm256_andnot_si256(box_outside_lanes_avx2(frag.px, frag.py, frag.bbox), code);
-        let (vis, pixels) = self.apply_avx2::<STATS>(frag.px, frag.py, code, t);
+        let code = _mm256_andnot_si256(box_outside_at_avx2(frag.px, frag.py, &poly.lanes), code);
+        let (vis, pixels) = self.apply_avx2::<STATS>(frag.px, frag.py, code, &poly.thin);
         if STATS {
             counters.spp.edge_lookups += 16 * frag.active.len() as u64;
             let on_screen = (self.width - frag.px).min(CELL_SIDE) * (self.height - frag.py).min(CELL_SIDE);
@@ -977,17 +1103,17 @@ impl SubpixelProcessors {
     /// the same visible sets and mask memory (tested against `process`). Only the
     /// dispatch is inlined, to [`Self::inside_avx2`] or [`Self::inside_plain`].
     #[inline]
-    pub fn inside(&mut self, px: u32, py: u32, t: u8) -> Visible {
+    pub fn inside(&mut self, px: u32, py: u32, poly: &SppPolygon) -> Visible {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: `inside_avx2` only needs the features `has_avx2` found the
             // processor to have when `self` was made (`avx2` is set nowhere else).
             #[allow(unsafe_code, reason = "a function compiled for AVX2, after detection")]
             unsafe {
-                return self.inside_avx2(px, py, t);
+                return self.inside_avx2(px, py, &poly.thin);
             }
         }
-        self.inside_plain(px, py, t)
+        self.inside_plain(px, py, poly.t)
     }
 
     /// [`Self::inside`] by its definition: [`Self::apply`] of an all-ones code.
@@ -1000,11 +1126,12 @@ impl SubpixelProcessors {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     #[inline(never)]
-    fn inside_avx2(&mut self, px: u32, py: u32, t: u8) -> Visible {
-        self.apply_avx2::<false>(px, py, std::arch::x86_64::_mm256_set1_epi16(-1), t).0
+    fn inside_avx2(&mut self, px: u32, py: u32, thin: &Words16) -> Visible {
+        self.apply_avx2::<false>(px, py, std::arch::x86_64::_mm256_set1_epi16(-1), thin).0
     }
 
-    /// [`Self::apply`] in AVX2 with the code in a register: the cell's 16 pixels are one
+    /// [`Self::apply`] in AVX2 with the code in a register and the thinning pattern
+    /// `thin` (the polygon's, [`SppPolygon`]): the cell's 16 pixels are one
     /// register's lanes, the first writes and the pixels with a visible subpixel a
     /// compare with zero and a pack each ([`lane_bits_avx2`]), the cover one `vptest`.
     #[cfg(target_arch = "x86_64")]
@@ -1015,13 +1142,13 @@ impl SubpixelProcessors {
         px: u32,
         py: u32,
         code: std::arch::x86_64::__m256i,
-        t: u8,
+        thin: &Words16,
     ) -> (Visible, u16) {
         use std::arch::x86_64::{
             __m256i, _mm256_and_si256, _mm256_andnot_si256, _mm256_cmpeq_epi16, _mm256_load_si256, _mm256_or_si256,
             _mm256_set1_epi16, _mm256_setzero_si256, _mm256_store_si256, _mm256_testc_si256,
         };
-        let thin: *const __m256i = self.thin[usize::from(t & 63)].0.as_ptr().cast();
+        let thin: *const __m256i = thin.0.as_ptr().cast();
         let cell = (py / CELL_SIDE) as usize * self.stride + (px / CELL_SIDE) as usize;
         let mask_ptr: *mut __m256i = self.masks[cell].0.as_mut_ptr().cast();
         // SAFETY: a pattern and a cell's mask are 16 `u16` aligned to 32 bytes
@@ -2096,6 +2223,22 @@ mod tests {
         }
     }
 
+    /// [`BoxLanes::new`] (SSE2 on x86-64) is [`BoxLanes::new_plain`]: boxes near
+    /// the origin, reversed, empty and unbounded.
+    #[test]
+    fn box_lanes_are_the_plain_ones() {
+        let mut next = xorshift(0x5EED_B0C5_0000_0022);
+        for k in 0..20_000 {
+            let mut v = || match next(4) {
+                0 => next(4) as u32,
+                1 => u32::MAX - next(4) as u32,
+                _ => next(1 << 32) as u32,
+            };
+            let bbox = [v(), v(), v(), v()];
+            assert_eq!(BoxLanes::new(bbox), BoxLanes::new_plain(bbox), "case {k}: box {bbox:?}");
+        }
+    }
+
     /// Marsaglia's xorshift64: `next(n)` is a deterministic number in `0..n`.
     /// Up to `n` random edges (fewer where two points coincide) of a screen of
     /// `root_side` pixels, each with an end in or around the 4 x 4 cell at `(px, py)`
@@ -2765,10 +2908,11 @@ mod tests {
             (a.masks[cell].0, b.masks[cell].0) = (mask, mask);
             let t = if k % 3 == 0 { 0 } else { next(64) as u8 };
             let (mut ca, mut cb) = (Counters::new(level), Counters::new(level));
+            let poly = a.polygon(bbox, t);
             let (got, want) = if k % 4 == 0 {
-                (a.process::<true>(&frag, &edges, t, &mut ca), b.process_plain::<true>(&frag, &edges, t, &mut cb))
+                (a.process::<true>(&frag, &edges, &poly, &mut ca), b.process_plain::<true>(&frag, &edges, t, &mut cb))
             } else {
-                (a.process::<false>(&frag, &edges, t, &mut ca), b.process_plain::<false>(&frag, &edges, t, &mut cb))
+                (a.process::<false>(&frag, &edges, &poly, &mut ca), b.process_plain::<false>(&frag, &edges, t, &mut cb))
             };
             assert_eq!(got, want, "case {k}: mode {mode:?}, cell ({px}, {py}), box {bbox:?}, edges {edges:?}");
             assert_eq!(a.masks[cell], b.masks[cell], "case {k}");
@@ -2818,8 +2962,9 @@ mod tests {
                 cells: super::super::gq::ONE_CELL,
                 bbox: super::super::gq::NO_BOX,
             };
-            let want = a.process::<false>(&frag, &[], t, &mut Counters::new(3));
-            let got = b.inside(4 * cx, 4 * cy, t);
+            let poly = a.polygon(super::super::gq::NO_BOX, t);
+            let want = a.process::<false>(&frag, &[], &poly, &mut Counters::new(3));
+            let got = b.inside(4 * cx, 4 * cy, &poly);
             assert_eq!(got, want, "case {k}");
             assert_eq!(b.masks[cell], a.masks[cell], "case {k}");
         }
