@@ -2091,7 +2091,7 @@ fn encode_half_avx2<const HALF: usize, const SITE: usize>(
     });
     // The first visible pixel's colour places the ROM's windows.
     let lane = (8 * HALF + lanes.trailing_zeros() as usize) & 15;
-    let anchor = [colors.rgb[0][lane], colors.rgb[1][lane], colors.rgb[2][lane]];
+    let anchor = [0, 1, 2].map(|c| _mm256_broadcast_ss(&colors.rgb[c][lane]));
     encode8_rgb_avx2(load_colors_half(colors, HALF), hidden, anchor, encoder.entries)
 }
 
@@ -2261,29 +2261,40 @@ fn load_colors_half(colors: &CellColors, half: usize) -> [__m256; 3] {
 }
 
 /// [`Encoder8Tables::encode`] of eight lanes of the three components, packed into
-/// [`Word8`]s (`hidden`: all ones in the lanes whose codes are not wanted; `lane`: a
-/// lane that is wanted). Each component's entries come from one window of the
-/// table, [`ENCODER8_BACK`] entries below `lane`'s address to
-/// `ENCODER8_WINDOW - ENCODER8_BACK - 1` above it (a load and a permute), when every
-/// wanted lane's address of every component lies in its window (one test, no
-/// reduction over the lanes); else from gathers. The window's entries are the
-/// table's, so the codes are the same either way.
+/// [`Word8`]s (`hidden`: all ones in the lanes whose codes are not wanted; `lane`:
+/// the colour of a lane that is wanted, each component in every lane). Each
+/// component's entries come from one window of the table, [`ENCODER8_BACK`] entries
+/// below `lane`'s address to `ENCODER8_WINDOW - ENCODER8_BACK - 1` above it (a load
+/// and a permute), when every wanted lane's address of every component lies in its
+/// window (one test, no reduction over the lanes); else from gathers. The window's
+/// entries are the table's, so the codes are the same either way.
+///
+/// The window's start found in the lanes, from `lane` broadcast from memory (a
+/// shift, a saturating subtraction, and one move to a general register for the
+/// window's address), where the scalar start shifted, clamped, moved back and
+/// broadcast had cost two instructions a component more (default: ~10 a cell).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-fn encode8_rgb_avx2(rgb: [__m256; 3], hidden: __m256i, lane: [f32; 3], table: &[u32; ENCODER8_PADDED]) -> __m256i {
+fn encode8_rgb_avx2(rgb: [__m256; 3], hidden: __m256i, lane: [__m256; 3], table: &[u32; ENCODER8_PADDED]) -> __m256i {
     const LANES: usize = ENCODER8_WINDOW;
     // (Loops, not closures: a closure would not inherit the target feature.)
     let (mut bits, mut address, mut d) =
         ([_mm256_setzero_si256(); 3], [_mm256_setzero_si256(); 3], [_mm256_setzero_si256(); 3]);
     let mut start = [0usize; 3];
+    let back = _mm256_set1_epi32(ENCODER8_BACK as i32);
     for c in 0..3 {
         bits[c] = _mm256_castps_si256(rgb[c]);
         address[c] = _mm256_srli_epi32::<{ ENCODER8_SHIFT as i32 }>(bits[c]);
-        // A window's first entry: at most `ENCODER8_ENTRIES - 1` (an address is 15
-        // bits), so the window is inside the padded table.
-        start[c] = ((lane[c].to_bits() >> ENCODER8_SHIFT) as usize).saturating_sub(ENCODER8_BACK);
-        d[c] = _mm256_sub_epi32(address[c], _mm256_set1_epi32(start[c] as i32));
+        // A window's first entry, `lane`'s address less `ENCODER8_BACK` or 0
+        // (`saturating_sub`), in every lane: the address is 15 bits, so a
+        // saturating subtraction of 16-bit halves (the upper half 0 - 0) is
+        // `saturating_sub`'s. At most `ENCODER8_ENTRIES - 1`, so the window is
+        // inside the padded table (the mask, the identity, tells the compiler so).
+        let first =
+            _mm256_subs_epu16(_mm256_srli_epi32::<{ ENCODER8_SHIFT as i32 }>(_mm256_castps_si256(lane[c])), back);
+        start[c] = _mm256_cvtsi256_si32(first) as u32 as usize & (ENCODER8_ENTRIES - 1);
+        d[c] = _mm256_sub_epi32(address[c], first);
     }
     // Offsets in `0..LANES` have no bit above the window's; a negative one has.
     let spread = _mm256_andnot_si256(hidden, _mm256_or_si256(_mm256_or_si256(d[0], d[1]), d[2]));
