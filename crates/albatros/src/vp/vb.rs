@@ -1637,7 +1637,15 @@ const SOFTPLUS_LANE_MAX: i32 = SOFTPLUS_PADDED as i32 - 2;
 /// two halves both run them in 16-bit lanes (one register a component for the 16
 /// pixels, half the operations but the gathers): default 120.8 → 120.9 M, terrain
 /// 195.0 → 191.1 M (shade's perf samples over the SPP's on terrain 0.689 → 0.668,
-/// five runs each).
+/// five runs each). Session 13: the rows read and written without a bounds check
+/// per row ([`cell_row`]), the encoder's windows loaded by `vlddqu`
+/// ([`load_window`]) and placed from the anchor colour in lanes
+/// ([`encode8_rgb_avx2`]): colour + VB default 115.9 → 111.5 M, terrain 179.6 →
+/// 170.3 M, city 77.0 → 71.5 M. Tried then and dropped: the colour computers'
+/// registers handed to F1 rather than loaded again from [`CellColors`] (three
+/// loads a half saved, but more spills: default +0.1 M); the store's bounds
+/// (`Q1`, `floor - 1`) as aligned lanes in memory rather than broadcast per half
+/// (default +0.1 M, terrain −0.3 M).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
