@@ -1741,7 +1741,15 @@ const SOFTPLUS_LANE_MAX: i32 = SOFTPLUS_PADDED as i32 - 2;
 /// two halves both run them in 16-bit lanes (one register a component for the 16
 /// pixels, half the operations but the gathers): default 120.8 → 120.9 M, terrain
 /// 195.0 → 191.1 M (shade's perf samples over the SPP's on terrain 0.689 → 0.668,
-/// five runs each).
+/// five runs each). Session 13: the rows read and written without a bounds check
+/// per row ([`cell_row`]), the encoder's windows loaded by `vlddqu`
+/// ([`load_window`]) and placed from the anchor colour in lanes
+/// ([`encode8_rgb_avx2`]): colour + VB default 115.9 → 111.5 M, terrain 179.6 →
+/// 170.3 M, city 77.0 → 71.5 M. Tried then and dropped: the colour computers'
+/// registers handed to F1 rather than loaded again from [`CellColors`] (three
+/// loads a half saved, but more spills: default +0.1 M); the store's bounds
+/// (`Q1`, `floor - 1`) as aligned lanes in memory rather than broadcast per half
+/// (default +0.1 M, terrain −0.3 M).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
@@ -1782,9 +1790,14 @@ fn accumulate_log8_avx2(
             encode_half_avx2::<0, CELL_PATH>(colors, encoder, hidden, visible),
             encode_half_avx2::<1, CELL_PATH>(colors, encoder, hidden, visible),
         ];
-        let words = f1_cell16_avx2(cell, width, cols, vis, words, sets, f1, ln_area);
-        store_half_avx2::<0, CELL_PATH>(cell, width, cols, words[0], visible);
-        store_half_avx2::<1, CELL_PATH>(cell, width, cols, words[1], visible);
+        // SAFETY: `cell` holds the cell's rows down to its last one with a visible
+        // pixel (just above), each `cols` words from `r * width`.
+        #[allow(unsafe_code, reason = "the cell's rows read and written without a bounds check per row")]
+        unsafe {
+            let words = f1_cell16_avx2(cell, width, cols, vis, words, sets, f1, ln_area);
+            store_half_avx2::<0, CELL_PATH>(cell, width, cols, words[0], visible);
+            store_half_avx2::<1, CELL_PATH>(cell, width, cols, words[1], visible);
+        }
         return;
     }
     // `ln S` of the 16 pixels once for the cell, when a half runs eq. 3 or 4 (it
@@ -1795,13 +1808,21 @@ fn accumulate_log8_avx2(
     // halves kept them in registers and the F1 registers on the stack).
     if visible & 0xFF != 0 {
         let word = encode_half_avx2::<0, HALF_PATH>(colors, encoder, hidden, visible);
-        let word = f1_half_avx2::<0>(cell, width, cols, vis, f1, word, ln_s, visible, done);
-        store_half_avx2::<0, HALF_PATH>(cell, width, cols, word, visible);
+        // SAFETY: as for the whole cell's path above.
+        #[allow(unsafe_code, reason = "the cell's rows read and written without a bounds check per row")]
+        unsafe {
+            let word = f1_half_avx2::<0>(cell, width, cols, vis, f1, word, ln_s, visible, done);
+            store_half_avx2::<0, HALF_PATH>(cell, width, cols, word, visible);
+        }
     }
     if visible >> 8 != 0 {
         let word = encode_half_avx2::<1, HALF_PATH>(colors, encoder, hidden, visible);
-        let word = f1_half_avx2::<1>(cell, width, cols, vis, f1, word, ln_s, visible, done);
-        store_half_avx2::<1, HALF_PATH>(cell, width, cols, word, visible);
+        // SAFETY: as for the whole cell's path above.
+        #[allow(unsafe_code, reason = "the cell's rows read and written without a bounds check per row")]
+        unsafe {
+            let word = f1_half_avx2::<1>(cell, width, cols, vis, f1, word, ln_s, visible, done);
+            store_half_avx2::<1, HALF_PATH>(cell, width, cols, word, visible);
+        }
     }
 }
 
@@ -2024,11 +2045,18 @@ fn from_code16_avx2(q: __m256i) -> __m256i {
 /// (`ln(1 + e^x)` by two gathers a component), and stored ([`LogArith::store`]),
 /// zero as [`F1_ZERO16`]; the halves' new words. The same values as the 32-bit
 /// lanes' (every value in them but zero's fits an `i16`), so the same words.
+///
+/// # Safety
+///
+/// `cell` must hold the cell's rows down to its last one with a visible pixel (a
+/// non-empty set in `sets`), row `r` at `r * width .. r * width + cols`
+/// ([`cell_row`]).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
 #[allow(clippy::too_many_arguments, reason = "the cell's registers, passed as they are")]
-fn f1_cell16_avx2(
+#[allow(unsafe_code, reason = "the cell's rows read without a bounds check per row")]
+unsafe fn f1_cell16_avx2(
     cell: &[Word8],
     width: usize,
     cols: usize,
@@ -2051,7 +2079,9 @@ fn f1_cell16_avx2(
     let mut rows = [_mm_setzero_si128(); 4];
     for (r, row) in rows.iter_mut().enumerate() {
         if later >> (4 * r) & 0xF != 0 {
-            *row = load_row(&cell[r * width..r * width + cols]);
+            // SAFETY: row `r` has a visible pixel, so it is in `cell` (this
+            // function's condition).
+            *row = load_row(unsafe { cell_row(cell, r, width, cols) });
         }
     }
     let stored = [_mm256_set_m128i(rows[1], rows[0]), _mm256_set_m128i(rows[3], rows[2])];
@@ -2107,11 +2137,17 @@ fn f1_cell16_avx2(
 /// cell's rows in one slice; `ln_s`: the cell's 16 `ln S` in 16-bit lanes
 /// ([`ln_area16_avx2`]); `visible`: a bit per pixel of the cell. A row with a later
 /// fragment is loaded whole (when the cell's rows are whole on the screen).
+///
+/// # Safety
+///
+/// `cell` must hold the cell's rows down to its last one with a visible pixel (in
+/// `visible`), row `r` at `r * width .. r * width + cols` ([`cell_row`]).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
 #[allow(clippy::too_many_arguments, reason = "the cell's registers, passed as they are")]
-fn f1_half_avx2<const HALF: usize>(
+#[allow(unsafe_code, reason = "the cell's rows read without a bounds check per row")]
+unsafe fn f1_half_avx2<const HALF: usize>(
     cell: &[Word8],
     width: usize,
     cols: usize,
@@ -2128,11 +2164,16 @@ fn f1_half_avx2<const HALF: usize>(
     }
     let first = u32::from(vis.first) >> (8 * HALF) & 0xFF;
     let later = lanes & !first;
-    // Rows `2 HALF` and `2 HALF + 1`, each where it has a later fragment (and so a
-    // visible pixel: it is in `cell`).
-    let at = 2 * HALF * width;
-    let low = if later & 0xF != 0 { load_row(&cell[at..at + cols]) } else { _mm_setzero_si128() };
-    let high = if later >> 4 != 0 { load_row(&cell[at + width..at + width + cols]) } else { _mm_setzero_si128() };
+    // Rows `2 HALF` and `2 HALF + 1`, each where it has a later fragment.
+    // SAFETY (both): such a row has a visible pixel, so it is in `cell` (this
+    // function's condition).
+    let low =
+        if later & 0xF != 0 { load_row(unsafe { cell_row(cell, 2 * HALF, width, cols) }) } else { _mm_setzero_si128() };
+    let high = if later >> 4 != 0 {
+        load_row(unsafe { cell_row(cell, 2 * HALF + 1, width, cols) })
+    } else {
+        _mm_setzero_si128()
+    };
     let stored = _mm256_set_m128i(high, low);
     let ln_s = _mm256_cvtepi16_epi32(if HALF == 0 {
         _mm256_castsi256_si128(ln_s)
@@ -2162,7 +2203,7 @@ fn encode_half_avx2<const HALF: usize, const SITE: usize>(
     });
     // The first visible pixel's colour places the ROM's windows.
     let lane = (8 * HALF + lanes.trailing_zeros() as usize) & 15;
-    let anchor = [colors.rgb[0][lane], colors.rgb[1][lane], colors.rgb[2][lane]];
+    let anchor = [0, 1, 2].map(|c| _mm256_broadcast_ss(&colors.rgb[c][lane]));
     encode8_rgb_avx2(load_colors_half(colors, HALF), hidden, anchor, encoder.entries)
 }
 
@@ -2171,10 +2212,16 @@ fn encode_half_avx2<const HALF: usize, const SITE: usize>(
 /// a masked store (`vpmaskmovd`: no branch per pixel, where terrain's small
 /// polygons leave a third of their rows partial), at the screen's right edge one
 /// by one.
+///
+/// # Safety
+///
+/// `cell` must hold the cell's rows down to its last one with a visible pixel (in
+/// `visible`), row `r` at `r * width .. r * width + cols` ([`cell_row_mut`]).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-fn store_half_avx2<const HALF: usize, const SITE: usize>(
+#[allow(unsafe_code, reason = "the cell's rows written without a bounds check per row")]
+unsafe fn store_half_avx2<const HALF: usize, const SITE: usize>(
     cell: &mut [Word8],
     width: usize,
     cols: usize,
@@ -2188,9 +2235,10 @@ fn store_half_avx2<const HALF: usize, const SITE: usize>(
         if lanes == 0 {
             continue;
         }
-        let at = (2 * HALF + row) * width;
         let new = if row == 0 { _mm256_castsi256_si128(word) } else { _mm256_extracti128_si256::<1>(word) };
-        let dst = &mut cell[at..at + cols];
+        // SAFETY: the row has a visible pixel, so it is in `cell` (this function's
+        // condition).
+        let dst = unsafe { cell_row_mut(cell, 2 * HALF + row, width, cols) };
         if cols == SIDE {
             if lanes == 0xF {
                 store_row(dst, new);
@@ -2210,6 +2258,39 @@ fn store_half_avx2<const HALF: usize, const SITE: usize>(
             }
         }
     }
+}
+
+/// Row `r` of a cell's rows `cell` as [`accumulate_log8_avx2`] slices them (row
+/// `r` at `r * width .. r * width + cols`, down to the last row with a visible
+/// pixel), with no bounds check: F1 reads and writes only rows with a visible pixel,
+/// which that slice holds, and a check per row had cost ~5 instructions (default:
+/// ~2.8 rows written a cell).
+///
+/// # Safety
+///
+/// Row `r` must be inside `cell`: `r * width + cols <= cell.len()` (a row with a
+/// visible pixel of the cell whose rows `cell` is).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+#[allow(unsafe_code, reason = "a row of a cell's slice, known to be inside it, without a bounds check")]
+unsafe fn cell_row(cell: &[Word8], r: usize, width: usize, cols: usize) -> &[Word8] {
+    debug_assert!(r * width + cols <= cell.len(), "row {r} outside the cell's rows");
+    // SAFETY: the range is inside `cell` (this function's condition).
+    unsafe { cell.get_unchecked(r * width..r * width + cols) }
+}
+
+/// [`cell_row`], to write.
+///
+/// # Safety
+///
+/// As [`cell_row`]'s.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+#[allow(unsafe_code, reason = "a row of a cell's slice, known to be inside it, without a bounds check")]
+unsafe fn cell_row_mut(cell: &mut [Word8], r: usize, width: usize, cols: usize) -> &mut [Word8] {
+    debug_assert!(r * width + cols <= cell.len(), "row {r} outside the cell's rows");
+    // SAFETY: the range is inside `cell` (this function's condition).
+    unsafe { cell.get_unchecked_mut(r * width..r * width + cols) }
 }
 
 /// Stores the words of `v` whose bits are set in `lanes` (bit `x`, word `x`) into a
@@ -2292,29 +2373,40 @@ fn load_colors_half(colors: &CellColors, half: usize) -> [__m256; 3] {
 }
 
 /// [`Encoder8Tables::encode`] of eight lanes of the three components, packed into
-/// [`Word8`]s (`hidden`: all ones in the lanes whose codes are not wanted; `lane`: a
-/// lane that is wanted). Each component's entries come from one window of the
-/// table, [`ENCODER8_BACK`] entries below `lane`'s address to
-/// `ENCODER8_WINDOW - ENCODER8_BACK - 1` above it (a load and a permute), when every
-/// wanted lane's address of every component lies in its window (one test, no
-/// reduction over the lanes); else from gathers. The window's entries are the
-/// table's, so the codes are the same either way.
+/// [`Word8`]s (`hidden`: all ones in the lanes whose codes are not wanted; `lane`:
+/// the colour of a lane that is wanted, each component in every lane). Each
+/// component's entries come from one window of the table, [`ENCODER8_BACK`] entries
+/// below `lane`'s address to `ENCODER8_WINDOW - ENCODER8_BACK - 1` above it (a load
+/// and a permute), when every wanted lane's address of every component lies in its
+/// window (one test, no reduction over the lanes); else from gathers. The window's
+/// entries are the table's, so the codes are the same either way.
+///
+/// The window's start found in the lanes, from `lane` broadcast from memory (a
+/// shift, a saturating subtraction, and one move to a general register for the
+/// window's address), where the scalar start shifted, clamped, moved back and
+/// broadcast had cost two instructions a component more (default: ~10 a cell).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-fn encode8_rgb_avx2(rgb: [__m256; 3], hidden: __m256i, lane: [f32; 3], table: &[u32; ENCODER8_PADDED]) -> __m256i {
+fn encode8_rgb_avx2(rgb: [__m256; 3], hidden: __m256i, lane: [__m256; 3], table: &[u32; ENCODER8_PADDED]) -> __m256i {
     const LANES: usize = ENCODER8_WINDOW;
     // (Loops, not closures: a closure would not inherit the target feature.)
     let (mut bits, mut address, mut d) =
         ([_mm256_setzero_si256(); 3], [_mm256_setzero_si256(); 3], [_mm256_setzero_si256(); 3]);
     let mut start = [0usize; 3];
+    let back = _mm256_set1_epi32(ENCODER8_BACK as i32);
     for c in 0..3 {
         bits[c] = _mm256_castps_si256(rgb[c]);
         address[c] = _mm256_srli_epi32::<{ ENCODER8_SHIFT as i32 }>(bits[c]);
-        // A window's first entry: at most `ENCODER8_ENTRIES - 1` (an address is 15
-        // bits), so the window is inside the padded table.
-        start[c] = ((lane[c].to_bits() >> ENCODER8_SHIFT) as usize).saturating_sub(ENCODER8_BACK);
-        d[c] = _mm256_sub_epi32(address[c], _mm256_set1_epi32(start[c] as i32));
+        // A window's first entry, `lane`'s address less `ENCODER8_BACK` or 0
+        // (`saturating_sub`), in every lane: the address is 15 bits, so a
+        // saturating subtraction of 16-bit halves (the upper half 0 - 0) is
+        // `saturating_sub`'s. At most `ENCODER8_ENTRIES - 1`, so the window is
+        // inside the padded table (the mask, the identity, tells the compiler so).
+        let first =
+            _mm256_subs_epu16(_mm256_srli_epi32::<{ ENCODER8_SHIFT as i32 }>(_mm256_castps_si256(lane[c])), back);
+        start[c] = _mm256_cvtsi256_si32(first) as u32 as usize & (ENCODER8_ENTRIES - 1);
+        d[c] = _mm256_sub_epi32(address[c], first);
     }
     // Offsets in `0..LANES` have no bit above the window's; a negative one has.
     let spread = _mm256_andnot_si256(hidden, _mm256_or_si256(_mm256_or_si256(d[0], d[1]), d[2]));
@@ -2323,10 +2415,7 @@ fn encode8_rgb_avx2(rgb: [__m256; 3], hidden: __m256i, lane: [f32; 3], table: &[
     for c in 0..3 {
         let e = if windows {
             let window: &[u32; LANES] = table[start[c]..start[c] + LANES].try_into().expect("a window");
-            // SAFETY: `window` is 32 bytes, which the load reads.
-            #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
-            let window = unsafe { _mm256_loadu_si256(window.as_ptr().cast()) };
-            _mm256_permutevar8x32_epi32(window, d[c])
+            _mm256_permutevar8x32_epi32(load_window(window), d[c])
         } else {
             entries8_avx2(address[c], hidden, table)
         };
@@ -2339,6 +2428,22 @@ fn encode8_rgb_avx2(rgb: [__m256; 3], hidden: __m256i, lane: [f32; 3], table: &[
         word = _mm256_or_si256(word, _mm256_sll_epi32(code, _mm_cvtsi32_si128(8 * c as i32)));
     }
     word
+}
+
+/// A window of the encoder ROM ([`ENCODER8_WINDOW`] entries at any entry) in a
+/// register, by `vlddqu`: the build's x86-64-v2 tuning splits an unaligned 32-byte
+/// load (`vmovdqu`) into two 16-byte halves, two instructions, where `vlddqu` is
+/// one (on Zen 3 the same load as `vmovdqu`): three a half-cell on the fused F1's
+/// windows (default: ~6 instructions a cell).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn load_window(window: &[u32; ENCODER8_WINDOW]) -> __m256i {
+    // SAFETY: `window` is 32 bytes, which the load reads.
+    #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
+    unsafe {
+        _mm256_lddqu_si256(window.as_ptr().cast())
+    }
 }
 
 /// The encoder ROM's entries of eight lanes at `address` (`hidden`: all ones in the
@@ -2363,10 +2468,7 @@ fn entries8_avx2(address: __m256i, hidden: __m256i, table: &[u32; ENCODER8_PADDE
     if _mm256_testz_si256(outside, _mm256_set1_epi32(!(LANES as i32 - 1))) == 1 && least < ENCODER8_ENTRIES {
         // Every visible lane in the window of 8 entries from the least address.
         let window: &[u32; LANES] = table[least..least + LANES].try_into().expect("a window");
-        // SAFETY: `window` is 32 bytes, which the load reads.
-        #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
-        let window = unsafe { _mm256_loadu_si256(window.as_ptr().cast()) };
-        _mm256_permutevar8x32_epi32(window, d)
+        _mm256_permutevar8x32_epi32(load_window(window), d)
     } else {
         // SAFETY: the address is 15 bits (a `u32` shifted right by 17), below the
         // table's `2^15` entries.
