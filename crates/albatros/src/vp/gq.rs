@@ -242,6 +242,14 @@ impl MaskMemory {
         (t & 0x3 | t >> 2 & 0xC | t >> 12 & 0x30 | t >> 14 & 0xC0) as u8
     }
 
+    /// The mask bits of the aligned 8 x 8 block of cells of Z-order index `bz` (its
+    /// cells' Z-order indices `bz << 6 | p`, at bit `p`). (Levels of fewer than 64
+    /// cells have one word, `bz` 0, the cells beyond the square reading 0.)
+    #[inline]
+    fn word(&self, bz: usize) -> u64 {
+        self.bits[bz]
+    }
+
     /// The mask bits of the four children of the parent cell `z` (of the level
     /// above), child `c` at bit `c`.
     #[inline]
@@ -433,9 +441,6 @@ pub struct CellProcessors {
     inside: Vec<Vec<usize>>,
     /// Bit `k`: `inside[k]` is not empty.
     queued: u32,
-    /// [`Self::start_at_size`]'s cells, as [`start_key`]s (scratch, kept here so
-    /// that no polygon clears it).
-    starts: [u64; MAX_START_CELLS],
 }
 
 /// A level-L cell handed to the SPPs, with the edges that cross it; or, from
@@ -511,7 +516,6 @@ impl CellProcessors {
             stride: 0,
             inside: vec![Vec::new(); root_level as usize + 1],
             queued: 0,
-            starts: [0; MAX_START_CELLS],
         }
     }
 
@@ -856,24 +860,6 @@ impl CellProcessors {
         let shift = self.root_level + 2 - level;
         let (cx0, cy0) = (bx0 >> shift, by0 >> shift);
         let (columns, rows) = ((bx1 >> shift) - cx0, (by1 >> shift) - cy0);
-        // The cells as keys `z << 8 | dx << 4 | dy` (`z` the Z-order index, `(dx, dy)`
-        // the cell in the block), in Z order.
-        let mut count = 0;
-        if columns <= 1 && rows <= 1 {
-            let (block, n) = block_in_z_order(cx0, cy0, columns == 1, rows == 1);
-            for (key, &(z, x, y)) in self.starts.iter_mut().zip(&block[..n]) {
-                *key = start_key(z, x - cx0, y - cy0);
-            }
-            count = n;
-        } else {
-            for dy in 0..=rows {
-                for dx in 0..=columns {
-                    self.starts[count] = start_key(morton(cx0 + dx, cy0 + dy), dx, dy);
-                    count += 1;
-                }
-            }
-            self.starts[..count].sort_unstable();
-        }
         let side = i64::from(self.side(level));
         let half = 1i64 << (EDGE_FRAC_BITS + (self.root_level + 1 - level));
         let first = 4 * self.stride * level as usize;
@@ -885,33 +871,47 @@ impl CellProcessors {
         for (i, (a, e)) in self.lists[base..base + n].iter_mut().zip(poly.edges).enumerate() {
             *a = ActiveEdge::at_cell(i as u32, e, x0, y0, side);
         }
-        for i in 0..count {
-            let key = self.starts[i];
-            let (z, dx, dy) = ((key >> 8) as usize, (key >> 4 & 0xF) as u32, (key & 0xF) as u32);
-            let cell = Cell { level, x: cx0 + dx, y: cy0 + dy };
-            if self.covered(z, level, start.level + 1) {
-                continue;
+        // With the start level in use and no other VP's cells pre-masked, the level's
+        // own mark decides ([`Self::covered`]): an aligned 8 x 8 block's marks are one
+        // word, read once for its cells. A start cell's descent marks only itself on
+        // its level (and cells below it), so the word read before serves the others.
+        let one_read = !self.share_pre_masked && self.masks.has(level);
+        let (blocks, count) = start_blocks(cx0, cy0, columns, rows);
+        for &(bz, bx, by, cells) in &blocks[..count] {
+            let mut open = cells;
+            if one_read {
+                open &= !self.memories[level as usize].word(bz);
             }
-            let (lo, hi) = self.lists.split_at_mut(base);
-            let (inside, outside) = derive_start_list(&hi[..n], &mut lo[first..first + n], dx, dy, 2 * half);
-            if outside {
-                // OUT for an edge: its parent's split would drop it, and its own split
-                // finds every child OUT (no mark, no cell).
-                continue;
-            }
-            if inside {
-                // As `split_step` does with a child wholly inside.
-                if poly.opaque && self.masks.has(level) {
-                    self.memories[level as usize].set_z(z);
+            while open != 0 {
+                let p = open.trailing_zeros() as usize;
+                open &= open - 1;
+                let z = bz << 6 | p;
+                let (dx, dy) = (bx * 8 + Z_COLUMN[p] - cx0, by * 8 + Z_ROW[p] - cy0);
+                let cell = Cell { level, x: cx0 + dx, y: cy0 + dy };
+                if !one_read && self.covered(z, level, start.level + 1) {
+                    continue;
                 }
-                if self.hierarchical && poly.opaque {
-                    self.inside[level as usize].push(z);
-                    self.queued |= 1 << level;
+                let (lo, hi) = self.lists.split_at_mut(base);
+                let (inside, outside) = derive_start_list(&hi[..n], &mut lo[first..first + n], dx, dy, 2 * half);
+                if outside {
+                    // OUT for an edge: its parent's split would drop it, and its own split
+                    // finds every child OUT (no mark, no cell).
+                    continue;
                 }
-                self.fill(cell, z, poly.opaque, spp);
-                continue;
+                if inside {
+                    // As `split_step` does with a child wholly inside.
+                    if poly.opaque && self.masks.has(level) {
+                        self.memories[level as usize].set_z(z);
+                    }
+                    if self.hierarchical && poly.opaque {
+                        self.inside[level as usize].push(z);
+                        self.queued |= 1 << level;
+                    }
+                    self.fill(cell, z, poly.opaque, spp);
+                    continue;
+                }
+                self.split::<false, true>(cell, z, first, n, half, poly, counters, spp);
             }
-            self.split::<false, true>(cell, z, first, n, half, poly, counters, spp);
         }
         true
     }
@@ -1151,8 +1151,8 @@ fn derive_start_list(first: &[ActiveEdge], out: &mut [ActiveEdge], dx: u32, dy: 
 /// The most cells each way of a start at the polygon's size
 /// ([`CellProcessors::start_at_size`]).
 const MAX_START_SPAN: u32 = 4;
-/// The most cells of a start at the polygon's size.
-const MAX_START_CELLS: usize = (MAX_START_SPAN * MAX_START_SPAN) as usize;
+// A start's cells lie in at most 2 x 2 aligned 8 x 8 blocks ([`start_blocks`]).
+const _: () = assert!(MAX_START_SPAN <= 8);
 
 /// The Z-order index's bits of a cell's column (even positions) and of its row (odd).
 const MORTON_X: usize = 0x5555_5555_5555_5555u64 as usize;
@@ -1183,11 +1183,73 @@ fn block_in_z_order(x0: u32, y0: u32, wide: bool, tall: bool) -> ([(usize, u32, 
     }
 }
 
-/// A start cell's key for [`CellProcessors::start_at_size`]'s sort: its Z-order index
-/// `z` above its place `(dx, dy)` in the block (each below [`MAX_START_SPAN`]).
+/// The cells of a start ([`CellProcessors::start_at_size`]): the block of cells
+/// `cx0 ..= cx0 + columns` by `cy0 ..= cy0 + rows` of one level (each at most
+/// [`MAX_START_SPAN`] - 1), as the aligned 8 x 8 blocks of cells it meets (at most
+/// 2 x 2), in Z order, each `(bz, bx, by, cells)`: its Z-order index `bz` and place
+/// `(bx, by)` among the level's 8 x 8 blocks, and its cells in the start as a word in
+/// Z order (bit `p` for the cell of Z-order index `bz << 6 | p`, at `(8 bx +
+/// Z_COLUMN[p], 8 by + Z_ROW[p])`), the first `count` entries. A block's 64 cells
+/// come after every cell of the blocks before it and before those after it in Z
+/// order, and the bits of a word go in Z order: so the cells in the order of the
+/// blocks and of their bits are in Z order, with no sort (`start_cells_are_in_z_order`
+/// checks it against a sort), and a block's word of mask bits is read at once.
 #[inline(always)]
-fn start_key(z: usize, dx: u32, dy: u32) -> u64 {
-    (z as u64) << 8 | u64::from(dx) << 4 | u64::from(dy)
+fn start_blocks(cx0: u32, cy0: u32, columns: u32, rows: u32) -> ([(usize, u32, u32, u64); 4], usize) {
+    let (cx1, cy1) = (cx0 + columns, cy0 + rows);
+    let (bx0, by0) = (cx0 >> 3, cy0 >> 3);
+    let (blocks, count) = block_in_z_order(bx0, by0, cx1 >> 3 != bx0, cy1 >> 3 != by0);
+    let mut out = [(0, 0, 0, 0); 4];
+    for (o, &(bz, bx, by)) in out.iter_mut().zip(&blocks[..count]) {
+        // The start's first and last column and row in this block.
+        let (a, b) = (if bx == bx0 { cx0 & 7 } else { 0 }, if bx == cx1 >> 3 { cx1 & 7 } else { 7 });
+        let (c, d) = (if by == by0 { cy0 & 7 } else { 0 }, if by == cy1 >> 3 { cy1 & 7 } else { 7 });
+        *o = (bz, bx, by, Z_COLUMNS[(a | b << 3) as usize] & Z_ROWS[(c | d << 3) as usize]);
+    }
+    (out, count)
+}
+
+/// The column of the cell of Z-order index `p` in an 8 x 8 block (`p`'s even bits).
+const Z_COLUMN: [u32; 64] = z_places(0);
+/// The row of the cell of Z-order index `p` in an 8 x 8 block (`p`'s odd bits).
+const Z_ROW: [u32; 64] = z_places(1);
+/// The cells of an 8 x 8 block in columns `a ..= b`, as a word in Z order, at `a | b << 3`.
+const Z_COLUMNS: [u64; 64] = z_ranges(&Z_COLUMN);
+/// The cells of an 8 x 8 block in rows `a ..= b`, as a word in Z order, at `a | b << 3`.
+const Z_ROWS: [u64; 64] = z_ranges(&Z_ROW);
+
+/// Builds [`Z_COLUMN`] (`odd` 0) and [`Z_ROW`] (`odd` 1): the bits of `p` at
+/// positions `2 i + odd` gathered.
+const fn z_places(odd: u32) -> [u32; 64] {
+    let mut table = [0; 64];
+    let mut p = 0;
+    while p < 64 {
+        let mut i = 0;
+        while i < 3 {
+            table[p] |= ((p as u32 >> (2 * i + odd)) & 1) << i;
+            i += 1;
+        }
+        p += 1;
+    }
+    table
+}
+
+/// Builds [`Z_COLUMNS`] and [`Z_ROWS`] from [`Z_COLUMN`] or [`Z_ROW`] (`place`).
+const fn z_ranges(place: &[u32; 64]) -> [u64; 64] {
+    let mut table = [0; 64];
+    let mut range = 0;
+    while range < 64 {
+        let (a, b) = (range as u32 & 7, range as u32 >> 3);
+        let mut p = 0;
+        while p < 64 {
+            if place[p] >= a && place[p] <= b {
+                table[range] |= 1 << p;
+            }
+            p += 1;
+        }
+        range += 1;
+    }
+    table
 }
 
 /// The children of `cell` (bit `c = dx + 2 dy`) that meet the box `bbox` (pixels,
@@ -1597,6 +1659,35 @@ mod tests {
                         .collect();
                     want.sort_unstable();
                     assert_eq!(&cells[..count], &want[..], "block at ({x0}, {y0}), {wide} {tall}");
+                }
+            }
+        }
+    }
+
+    /// [`start_blocks`] gives a start's cells, in the order of its blocks and of
+    /// their bits, with their Z-order indices, as a sort by them would: every block
+    /// of up to 8 x 8 cells from the first 40 x 40 cells.
+    #[test]
+    fn start_cells_are_in_z_order() {
+        for cy0 in 0..40u32 {
+            for cx0 in 0..40u32 {
+                for (columns, rows) in (0..64u32).map(|i| (i & 7, i >> 3)) {
+                    let (blocks, count) = start_blocks(cx0, cy0, columns, rows);
+                    let mut got = Vec::new();
+                    for &(bz, bx, by, cells) in &blocks[..count] {
+                        assert_eq!(bz, morton(bx, by));
+                        let mut open = cells;
+                        while open != 0 {
+                            let p = open.trailing_zeros() as usize;
+                            open &= open - 1;
+                            got.push((bz << 6 | p, bx * 8 + Z_COLUMN[p], by * 8 + Z_ROW[p]));
+                        }
+                    }
+                    let mut want: Vec<(usize, u32, u32)> = (cy0..=cy0 + rows)
+                        .flat_map(|y| (cx0..=cx0 + columns).map(move |x| (morton(x, y), x, y)))
+                        .collect();
+                    want.sort_unstable();
+                    assert_eq!(got, want, "start at ({cx0}, {cy0}), {columns} x {rows}");
                 }
             }
         }
