@@ -822,10 +822,11 @@ impl CellProcessors {
     /// touches; and a start cell's edges cost less than a split of its parent: they
     /// come from the block's first cell's by additions ([`derive_start_list`]), and
     /// a cell OUT for an edge is dropped there, as its parent's split would drop it.
-    /// Up to four cells each way (16) measured best (session 12: two each way, the
-    /// earlier rule, raster default 110.0 / terrain 349.3 M; four 103.0 / 336.0; five
-    /// 101.7 / 339.2; six 100.6 / 340.3, the sort of the cells in Z order and the
-    /// cells OUT costing more on `terrain`'s small polygons).
+    /// Up to eight cells each way (64) measured best once the cells came in Z order
+    /// with no sort ([`start_blocks`]; session 13: raster default / terrain / city
+    /// 100.4 / 324.7 / 50.5 M with four, 96.5 / 323.2 / 49.4 with six, 94.8 / 323.8 /
+    /// 49.1 with eight; session 12, with a sort: two 110.0 / 349.3, four 103.0 /
+    /// 336.0, six 100.6 / 340.3).
     ///
     /// The same subpixels as the descent from `start`: every cell the box meets lies
     /// in these cells, the SPPs clip each code to the box
@@ -1150,7 +1151,7 @@ fn derive_start_list(first: &[ActiveEdge], out: &mut [ActiveEdge], dx: u32, dy: 
 
 /// The most cells each way of a start at the polygon's size
 /// ([`CellProcessors::start_at_size`]).
-const MAX_START_SPAN: u32 = 4;
+const MAX_START_SPAN: u32 = 8;
 // A start's cells lie in at most 2 x 2 aligned 8 x 8 blocks ([`start_blocks`]).
 const _: () = assert!(MAX_START_SPAN <= 8);
 
