@@ -823,7 +823,7 @@ impl CellProcessors {
     /// come from the block's first cell's by additions ([`derive_start_list`]), and
     /// a cell OUT for an edge is dropped there, as its parent's split would drop it.
     /// Up to eight cells each way (64) measured best once the cells came in Z order
-    /// with no sort ([`start_blocks`]; session 13: raster default / terrain / city
+    /// with no sort ([`StartBlocks`]; session 13: raster default / terrain / city
     /// 100.4 / 324.7 / 50.5 M with four, 96.5 / 323.2 / 49.4 with six, 94.8 / 323.8 /
     /// 49.1 with eight; session 12, with a sort: two 110.0 / 349.3, four 103.0 /
     /// 336.0, six 100.6 / 340.3).
@@ -877,8 +877,9 @@ impl CellProcessors {
         // word, read once for its cells. A start cell's descent marks only itself on
         // its level (and cells below it), so the word read before serves the others.
         let one_read = !self.share_pre_masked && self.masks.has(level);
-        let (blocks, count) = start_blocks(cx0, cy0, columns, rows);
-        for &(bz, bx, by, cells) in &blocks[..count] {
+        let blocks = StartBlocks::new(cx0, cy0, columns, rows);
+        for i in 0..blocks.count {
+            let (bz, bx, by, cells) = blocks.block(i);
             let mut open = cells;
             if one_read {
                 open &= !self.memories[level as usize].word(bz);
@@ -893,13 +894,12 @@ impl CellProcessors {
                     continue;
                 }
                 let (lo, hi) = self.lists.split_at_mut(base);
-                let (inside, outside) = derive_start_list(&hi[..n], &mut lo[first..first + n], dx, dy, 2 * half);
-                if outside {
+                let Some(len) = derive_start_list(&hi[..n], &mut lo[first..first + n], dx, dy, 2 * half) else {
                     // OUT for an edge: its parent's split would drop it, and its own split
                     // finds every child OUT (no mark, no cell).
                     continue;
-                }
-                if inside {
+                };
+                if len == 0 {
                     // As `split_step` does with a child wholly inside.
                     if poly.opaque && self.masks.has(level) {
                         self.memories[level as usize].set_z(z);
@@ -911,7 +911,7 @@ impl CellProcessors {
                     self.fill(cell, z, poly.opaque, spp);
                     continue;
                 }
-                self.split::<false, true>(cell, z, first, n, half, poly, counters, spp);
+                self.split::<false, true>(cell, z, first, len, half, poly, counters, spp);
             }
         }
         true
@@ -1122,92 +1122,110 @@ impl CellProcessors {
 /// further along the edge's lines is V1 plus `k` times `V2 - V1` (V is linear and
 /// exact: `V2 - V1` is the slope times the side), and a cell further across has its
 /// origin `side` further, so the same values as [`ActiveEdge::at_cell`] of the cell
-/// (tested by `start_lists_are_at_cell`) by two products and additions. Returns
-/// whether the cell is IN for every edge, and whether it is OUT for one (then the
-/// list is left unfinished: the cell is dropped), as its
-/// parent's split would code it: the line at or before the cell's near border (or
-/// at or beyond its far one) on the polygon's side, or on the other.
+/// (tested by `start_lists_are_at_cell`) by two products and additions. Each edge is
+/// coded as the cell's parent's split would code it: IN (the line at or before the
+/// cell's near border, or at or beyond its far one, on the polygon's side), OUT (the
+/// same on the other side) or crossing. Returns `None` when the cell is OUT for an
+/// edge (the cell is dropped; the list is left unfinished), else how many edges cross
+/// it: only those are kept, packed at the front of `out`, as a split keeps only the
+/// crossing edges on a child's list (an edge IN for the whole cell codes its every
+/// child IN, which changes no AND of codes, and crosses none); `Some(0)` is a cell
+/// wholly inside. (Terrain's start cells, of about 3 edges, are IN for about a third
+/// of them.)
 #[inline(always)]
-fn derive_start_list(first: &[ActiveEdge], out: &mut [ActiveEdge], dx: u32, dy: u32, side: i64) -> (bool, bool) {
+fn derive_start_list(first: &[ActiveEdge], out: &mut [ActiveEdge], dx: u32, dy: u32, side: i64) -> Option<usize> {
     let (dx, dy) = (i64::from(dx), i64::from(dy));
-    let mut inside = true;
-    for (a, b) in out.iter_mut().zip(first) {
+    let out = &mut out[..first.len()];
+    let mut len = 0;
+    for (i, b) in first.iter().enumerate() {
         let (along, across) = if b.vertical() { (dy, dx) } else { (dx, dy) };
         let d = b.v2.0 - b.v1.0;
         let v1 = b.v1.0 + along * d - across * side;
         let v2 = v1 + d;
-        *a = ActiveEdge { v1: EdgeCoord(v1), v2: EdgeCoord(v2), ..*b };
+        debug_assert!(len <= i);
+        // SAFETY: `len` counts the edges before `i` kept, so `len <= i < first.len()`,
+        // which is `out.len()` (sliced above).
+        #[allow(unsafe_code, reason = "a packed list's index, at most the edge's, which the compiler cannot see")]
+        let entry = unsafe { out.get_unchecked_mut(len) };
+        *entry = ActiveEdge { v1: EdgeCoord(v1), v2: EdgeCoord(v2), ..*b };
         let (lo, hi) = (v1.min(v2), v1.max(v2));
         let (near, far) = (hi <= 0, lo >= side);
         let (is_in, is_out) = if b.lr() { (near, far) } else { (far, near) };
         if is_out {
             // The rest of the list is not needed.
-            return (false, true);
+            return None;
         }
-        inside &= is_in;
+        len += usize::from(!is_in);
     }
-    (inside, false)
+    Some(len)
 }
 
 /// The most cells each way of a start at the polygon's size
 /// ([`CellProcessors::start_at_size`]).
 const MAX_START_SPAN: u32 = 8;
-// A start's cells lie in at most 2 x 2 aligned 8 x 8 blocks ([`start_blocks`]).
+// A start's cells lie in at most 2 x 2 aligned 8 x 8 blocks ([`StartBlocks`]).
 const _: () = assert!(MAX_START_SPAN <= 8);
 
-/// The Z-order index's bits of a cell's column (even positions) and of its row (odd).
-const MORTON_X: usize = 0x5555_5555_5555_5555u64 as usize;
-/// See [`MORTON_X`].
-const MORTON_Y: usize = !MORTON_X;
-
-/// The cells of a block of one or two columns (`wide`) and one or two rows (`tall`)
-/// from cell `(x0, y0)` of one level, as `(z, x, y)` with `z` the Z-order index, in Z
-/// order (the order the descent visits them; the first `count` entries). A 2 x 2 block
-/// goes row by row unless the border between its columns is that of a larger cell
-/// than the border between its rows (`x0` ends in more one bits than `y0`): then column
-/// by column (`block_is_in_z_order` checks it against a sort). The neighbours' indices
-/// come from the first's by a carry through the column's or the row's bits.
-#[inline(always)]
-fn block_in_z_order(x0: u32, y0: u32, wide: bool, tall: bool) -> ([(usize, u32, u32); 4], usize) {
-    let z0 = morton(x0, y0);
-    let zx = ((z0 | MORTON_Y).wrapping_add(1) & MORTON_X) | (z0 & MORTON_Y);
-    let zy = ((z0 | MORTON_X).wrapping_add(2) & MORTON_Y) | (z0 & MORTON_X);
-    let zxy = ((zx | MORTON_X).wrapping_add(2) & MORTON_Y) | (zx & MORTON_X);
-    let (right, below, corner) = ((zx, x0 + 1, y0), (zy, x0, y0 + 1), (zxy, x0 + 1, y0 + 1));
-    let first = (z0, x0, y0);
-    match (wide, tall) {
-        (false, false) => ([first; 4], 1),
-        (true, false) => ([first, right, first, first], 2),
-        (false, true) => ([first, below, first, first], 2),
-        (true, true) if x0.trailing_ones() > y0.trailing_ones() => ([first, below, right, corner], 4),
-        (true, true) => ([first, right, below, corner], 4),
-    }
+/// The cells of a start ([`CellProcessors::start_at_size`]), the block of cells
+/// `cx0 ..= cx1` by `cy0 ..= cy1` of one level (at most [`MAX_START_SPAN`] each way),
+/// as the aligned 8 x 8 blocks of cells it meets (at most 2 x 2), in Z order
+/// ([`Self::block`]). A block's 64 cells come after every cell of the blocks before it
+/// in Z order and before those of the blocks after it, and the bits of a block's word
+/// go in Z order: so the cells in the order of the blocks and of their bits are in Z
+/// order, the order the descent visits them, with no sort (`start_cells_are_in_z_order`
+/// checks it against a sort), and a block's word of mask bits is read at once.
+#[derive(Clone, Copy, Debug)]
+struct StartBlocks {
+    /// The first cell's column and row.
+    cx0: u32,
+    cy0: u32,
+    /// The last cell's column and row.
+    cx1: u32,
+    cy1: u32,
+    /// How many blocks: 1, 2 or 4.
+    count: u32,
+    /// Block `i`'s column is the first block's plus bit `step_x` of `i`, its row plus
+    /// bit `step_y` ([`Self::NO_STEP`]: none of `i < 4`).
+    step_x: u32,
+    step_y: u32,
 }
 
-/// The cells of a start ([`CellProcessors::start_at_size`]): the block of cells
-/// `cx0 ..= cx0 + columns` by `cy0 ..= cy0 + rows` of one level (each at most
-/// [`MAX_START_SPAN`] - 1), as the aligned 8 x 8 blocks of cells it meets (at most
-/// 2 x 2), in Z order, each `(bz, bx, by, cells)`: its Z-order index `bz` and place
-/// `(bx, by)` among the level's 8 x 8 blocks, and its cells in the start as a word in
-/// Z order (bit `p` for the cell of Z-order index `bz << 6 | p`, at `(8 bx +
-/// Z_COLUMN[p], 8 by + Z_ROW[p])`), the first `count` entries. A block's 64 cells
-/// come after every cell of the blocks before it and before those after it in Z
-/// order, and the bits of a word go in Z order: so the cells in the order of the
-/// blocks and of their bits are in Z order, with no sort (`start_cells_are_in_z_order`
-/// checks it against a sort), and a block's word of mask bits is read at once.
-#[inline(always)]
-fn start_blocks(cx0: u32, cy0: u32, columns: u32, rows: u32) -> ([(usize, u32, u32, u64); 4], usize) {
-    let (cx1, cy1) = (cx0 + columns, cy0 + rows);
-    let (bx0, by0) = (cx0 >> 3, cy0 >> 3);
-    let (blocks, count) = block_in_z_order(bx0, by0, cx1 >> 3 != bx0, cy1 >> 3 != by0);
-    let mut out = [(0, 0, 0, 0); 4];
-    for (o, &(bz, bx, by)) in out.iter_mut().zip(&blocks[..count]) {
-        // The start's first and last column and row in this block.
-        let (a, b) = (if bx == bx0 { cx0 & 7 } else { 0 }, if bx == cx1 >> 3 { cx1 & 7 } else { 7 });
-        let (c, d) = (if by == by0 { cy0 & 7 } else { 0 }, if by == cy1 >> 3 { cy1 & 7 } else { 7 });
-        *o = (bz, bx, by, Z_COLUMNS[(a | b << 3) as usize] & Z_ROWS[(c | d << 3) as usize]);
+impl StartBlocks {
+    /// A bit of the blocks' index `i < 4` that is never set.
+    const NO_STEP: u32 = 2;
+
+    /// The blocks of the start of `columns + 1` by `rows + 1` cells from `(cx0, cy0)`.
+    /// Of 2 x 2 blocks, the two of a row go first, unless the border between the two
+    /// columns is that of a larger cell than the border between the rows (the first
+    /// block's column ends in more one bits than its row): then those of a column.
+    #[inline(always)]
+    fn new(cx0: u32, cy0: u32, columns: u32, rows: u32) -> Self {
+        let (cx1, cy1) = (cx0 + columns, cy0 + rows);
+        let (bx0, by0) = (cx0 >> 3, cy0 >> 3);
+        let (count, step_x, step_y) = match (cx1 >> 3 != bx0, cy1 >> 3 != by0) {
+            (false, false) => (1, Self::NO_STEP, Self::NO_STEP),
+            (true, false) => (2, 0, Self::NO_STEP),
+            (false, true) => (2, Self::NO_STEP, 0),
+            (true, true) if bx0.trailing_ones() > by0.trailing_ones() => (4, 1, 0),
+            (true, true) => (4, 0, 1),
+        };
+        Self { cx0, cy0, cx1, cy1, count, step_x, step_y }
     }
-    (out, count)
+
+    /// Block `i < count` in Z order, as `(bz, bx, by, cells)`: its Z-order index `bz`
+    /// and place `(bx, by)` among the level's 8 x 8 blocks, and the start's cells in
+    /// it as a word in Z order (bit `p` for the cell of Z-order index `bz << 6 | p`,
+    /// at `(8 bx + Z_COLUMN[p], 8 by + Z_ROW[p])`).
+    #[inline(always)]
+    fn block(&self, i: u32) -> (usize, u32, u32, u64) {
+        let (bx, by) = ((self.cx0 >> 3) + (i >> self.step_x & 1), (self.cy0 >> 3) + (i >> self.step_y & 1));
+        // The start's first and last column and row in this block.
+        let a = if bx == self.cx0 >> 3 { self.cx0 & 7 } else { 0 };
+        let b = if bx == self.cx1 >> 3 { self.cx1 & 7 } else { 7 };
+        let c = if by == self.cy0 >> 3 { self.cy0 & 7 } else { 0 };
+        let d = if by == self.cy1 >> 3 { self.cy1 & 7 } else { 7 };
+        (morton(bx, by), bx, by, Z_COLUMNS[(a | b << 3) as usize] & Z_ROWS[(c | d << 3) as usize])
+    }
 }
 
 /// The column of the cell of Z-order index `p` in an 8 x 8 block (`p`'s even bits).
@@ -1633,13 +1651,14 @@ mod tests {
             for dy in 0..3u32 {
                 for dx in 0..3u32 {
                     let mut out = [ActiveEdge::EMPTY];
-                    let (inside, outside) = derive_start_list(&[first], &mut out, dx, dy, units);
+                    let kept = derive_start_list(&[first], &mut out, dx, dy, units);
                     let (px, py) = ((cx0 + i64::from(dx)) * side, (cy0 + i64::from(dy)) * side);
                     let want = ActiveEdge::at_cell(3, &e, px, py, side);
                     assert_eq!(out[0], want, "cell ({dx}, {dy}) of side {side}");
                     let (lo, hi) = (want.v1.0.min(want.v2.0), want.v1.0.max(want.v2.0));
                     let (near, far) = (hi <= 0, lo >= units);
-                    assert_eq!((inside, outside), if want.lr() { (near, far) } else { (far, near) });
+                    let (inside, outside) = if want.lr() { (near, far) } else { (far, near) };
+                    assert_eq!(kept, if outside { None } else { Some(usize::from(!inside)) });
                     checked += 1;
                 }
             }
@@ -1647,25 +1666,7 @@ mod tests {
         assert!(checked > 30_000, "{checked} cells checked");
     }
 
-    /// [`block_in_z_order`] gives a block's cells with their Z-order indices, sorted
-    /// by them: every block of up to 2 x 2 cells from the first 64 x 64 cells.
-    #[test]
-    fn block_is_in_z_order() {
-        for y0 in 0..64u32 {
-            for x0 in 0..64u32 {
-                for (wide, tall) in [(false, false), (true, false), (false, true), (true, true)] {
-                    let (cells, count) = block_in_z_order(x0, y0, wide, tall);
-                    let mut want: Vec<(usize, u32, u32)> = (y0..=y0 + u32::from(tall))
-                        .flat_map(|y| (x0..=x0 + u32::from(wide)).map(move |x| (morton(x, y), x, y)))
-                        .collect();
-                    want.sort_unstable();
-                    assert_eq!(&cells[..count], &want[..], "block at ({x0}, {y0}), {wide} {tall}");
-                }
-            }
-        }
-    }
-
-    /// [`start_blocks`] gives a start's cells, in the order of its blocks and of
+    /// [`StartBlocks`] gives a start's cells, in the order of its blocks and of
     /// their bits, with their Z-order indices, as a sort by them would: every block
     /// of up to 8 x 8 cells from the first 40 x 40 cells.
     #[test]
@@ -1673,9 +1674,10 @@ mod tests {
         for cy0 in 0..40u32 {
             for cx0 in 0..40u32 {
                 for (columns, rows) in (0..64u32).map(|i| (i & 7, i >> 3)) {
-                    let (blocks, count) = start_blocks(cx0, cy0, columns, rows);
+                    let blocks = StartBlocks::new(cx0, cy0, columns, rows);
                     let mut got = Vec::new();
-                    for &(bz, bx, by, cells) in &blocks[..count] {
+                    for i in 0..blocks.count {
+                        let (bz, bx, by, cells) = blocks.block(i);
                         assert_eq!(bz, morton(bx, by));
                         let mut open = cells;
                         while open != 0 {
@@ -1928,7 +1930,8 @@ mod tests {
     /// (the marks of each feeding the next), the descent with counting off, with
     /// counting on, and the filling descent reach the same cells with the same
     /// active edges (the filling descent less closed bands of empty codes) and leave
-    /// the same marks; the counters of the counting descent
+    /// the same marks (the filling descent a part of them above its start levels, the
+    /// same on the last level); the counters of the counting descent
     /// are those of the machine's every step (tested by the golden statistics).
     #[test]
     fn descents_agree_under_masks() {
@@ -1966,8 +1969,16 @@ mod tests {
             filled_drops_only_empty(&filled, &want, &edges, bbox, &format!("triangle {k} {p:?}"));
             for level in 1..=off.root_level as usize {
                 assert_eq!(on.memories[level].bits, off.memories[level].bits, "level {level}, triangle {k}");
-                assert_eq!(filling.memories[level].bits, off.memories[level].bits, "level {level}, triangle {k}");
+                // The filling descent marks a cell wholly inside above its start level
+                // only from the start level down ([`CellProcessors::start_at_size`]):
+                // a part of the marks, closed downward, the same on the last level.
+                let (got, all) = (&filling.memories[level].bits, &off.memories[level].bits);
+                assert!(got.iter().zip(all).all(|(g, a)| g & !a == 0), "level {level}, triangle {k}");
+                if level == off.root_level as usize {
+                    assert_eq!(got, all, "level {level}, triangle {k}");
+                }
             }
+            assert!(filling.marks_closed_downward(), "triangle {k}");
             reached += want.len();
         }
         assert!(reached > 10_000, "{reached}");
