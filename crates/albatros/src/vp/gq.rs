@@ -433,6 +433,9 @@ pub struct CellProcessors {
     /// as its polygon, so `stride` only grows with a polygon of more edges than any
     /// before (the GP's clipper bounds none).
     lists: Vec<ActiveEdge>,
+    /// [`Self::start_at_size`]'s edges of the start's first cell, set up for
+    /// [`derive_start_list`] (scratch, `stride` entries).
+    start_edges: Vec<StartEdge>,
     /// Entries per list (see `lists`).
     stride: usize,
     /// Per level, the cells an opaque polygon covers wholly inside, queued by
@@ -513,6 +516,7 @@ impl CellProcessors {
             cleared_share: Share::WHOLE,
             share_pre_masked: false,
             lists: Vec::new(),
+            start_edges: Vec::new(),
             stride: 0,
             inside: vec![Vec::new(); root_level as usize + 1],
             queued: 0,
@@ -711,6 +715,7 @@ impl CellProcessors {
         if n > self.stride {
             self.stride = n.next_power_of_two();
             self.lists.resize(4 * self.stride * (self.root_level as usize + 1), ActiveEdge::EMPTY);
+            self.start_edges.resize(self.stride, StartEdge::EMPTY);
         }
         if FILL && self.start_at_size(start, poly, counters, spp) {
             return;
@@ -865,12 +870,11 @@ impl CellProcessors {
         let half = 1i64 << (EDGE_FRAC_BITS + (self.root_level + 1 - level));
         let first = 4 * self.stride * level as usize;
         let n = poly.edges.len();
-        // The block's first cell's edges, kept in the level's second list: every
-        // cell's are derived from them into the first ([`derive_start_list`]).
-        let base = first + self.stride;
+        // The block's first cell's edges: every cell's are derived from them into
+        // the level's first list ([`derive_start_list`]).
         let (x0, y0) = (i64::from(cx0) * side, i64::from(cy0) * side);
-        for (i, (a, e)) in self.lists[base..base + n].iter_mut().zip(poly.edges).enumerate() {
-            *a = ActiveEdge::at_cell(i as u32, e, x0, y0, side);
+        for (i, (s, e)) in self.start_edges[..n].iter_mut().zip(poly.edges).enumerate() {
+            *s = StartEdge::new(ActiveEdge::at_cell(i as u32, e, x0, y0, side), 2 * half);
         }
         // With the start level in use and no other VP's cells pre-masked, the level's
         // own mark decides ([`Self::covered`]): an aligned 8 x 8 block's marks are one
@@ -893,8 +897,8 @@ impl CellProcessors {
                 if !one_read && self.covered(z, level, start.level + 1) {
                     continue;
                 }
-                let (lo, hi) = self.lists.split_at_mut(base);
-                let Some(len) = derive_start_list(&hi[..n], &mut lo[first..first + n], dx, dy, 2 * half) else {
+                let Some(len) = derive_start_list(&self.start_edges[..n], &mut self.lists[first..first + n], dx, dy)
+                else {
                     // OUT for an edge: its parent's split would drop it, and its own split
                     // finds every child OUT (no mark, no cell).
                     continue;
@@ -1116,12 +1120,54 @@ impl CellProcessors {
     }
 }
 
+/// An edge of a start's first cell ([`CellProcessors::start_at_size`]), set up for
+/// [`derive_start_list`]: a cell `(dx, dy)` cells further has V `dx ox + dy oy` further
+/// (V at a border `k` cells further along the edge's lines is V1 plus `k` times `V2 -
+/// V1`, V being linear and exact, and a cell further across has its origin a side
+/// further), and with `u` that offset, negated when LR = 0 (`flip` all ones), the
+/// cell is OUT for the edge when `u >= t_out` and IN when `u <= t_in`.
+#[derive(Clone, Copy, Debug)]
+struct StartEdge {
+    /// The edge at the first cell ([`ActiveEdge::at_cell`]).
+    first: ActiveEdge,
+    /// V's change a cell along the columns and a cell along the rows.
+    ox: i64,
+    oy: i64,
+    /// The offsets (signed by `flip`) from which the cell is OUT, and up to which IN.
+    t_out: i64,
+    t_in: i64,
+    /// 0 for LR = 1, all ones for LR = 0.
+    flip: i64,
+}
+
+impl StartEdge {
+    /// An entry of the scratch list before it is written.
+    const EMPTY: Self = Self { first: ActiveEdge::EMPTY, ox: 0, oy: 0, t_out: 0, t_in: 0, flip: 0 };
+
+    /// Edge `first` of a start's first cell, of side `side` ([`EdgeCoord`] units). A
+    /// cell's parent's split codes the edge IN when the line lies at or before the
+    /// cell's near border (`hi <= 0`, the greatest of V1, V2 at the cell) on the
+    /// polygon's side, OUT when at or beyond its far one (`lo >= side`) (with LR = 0
+    /// the other way round); at a cell `off` further, `hi = hi0 + off`, `lo = lo0 + off`.
+    #[inline(always)]
+    fn new(first: ActiveEdge, side: i64) -> Self {
+        let d = first.v2.0 - first.v1.0;
+        let (ox, oy) = if first.vertical() { (-side, d) } else { (d, -side) };
+        let (lo0, hi0) = (first.v1.0.min(first.v2.0), first.v1.0.max(first.v2.0));
+        let (t_out, t_in, flip) = if first.lr() {
+            // OUT: lo0 + off >= side; IN: hi0 + off <= 0.
+            (side - lo0, -hi0, 0)
+        } else {
+            // OUT: hi0 + off <= 0, -off >= hi0; IN: lo0 + off >= side, -off <= lo0 - side.
+            (hi0, lo0 - side, -1)
+        };
+        Self { first, ox, oy, t_out, t_in, flip }
+    }
+}
+
 /// The edges of the cell `(dx, dy)` cells along from the first of a block
-/// ([`CellProcessors::start_at_size`]), of side `side` ([`EdgeCoord`] units), from the
-/// first cell's (`first`, [`ActiveEdge::at_cell`]) into `out`: V at a border `k` cells
-/// further along the edge's lines is V1 plus `k` times `V2 - V1` (V is linear and
-/// exact: `V2 - V1` is the slope times the side), and a cell further across has its
-/// origin `side` further, so the same values as [`ActiveEdge::at_cell`] of the cell
+/// ([`CellProcessors::start_at_size`]) from the first cell's (`starts`,
+/// [`StartEdge`]) into `out`: the same values as [`ActiveEdge::at_cell`] of the cell
 /// (tested by `start_lists_are_at_cell`) by two products and additions. Each edge is
 /// coded as the cell's parent's split would code it: IN (the line at or before the
 /// cell's near border, or at or beyond its far one, on the polygon's side), OUT (the
@@ -1133,29 +1179,24 @@ impl CellProcessors {
 /// wholly inside. (Terrain's start cells, of about 3 edges, are IN for about a third
 /// of them.)
 #[inline(always)]
-fn derive_start_list(first: &[ActiveEdge], out: &mut [ActiveEdge], dx: u32, dy: u32, side: i64) -> Option<usize> {
+fn derive_start_list(starts: &[StartEdge], out: &mut [ActiveEdge], dx: u32, dy: u32) -> Option<usize> {
     let (dx, dy) = (i64::from(dx), i64::from(dy));
-    let out = &mut out[..first.len()];
+    let out = &mut out[..starts.len()];
     let mut len = 0;
-    for (i, b) in first.iter().enumerate() {
-        let (along, across) = if b.vertical() { (dy, dx) } else { (dx, dy) };
-        let d = b.v2.0 - b.v1.0;
-        let v1 = b.v1.0 + along * d - across * side;
-        let v2 = v1 + d;
+    for (i, s) in starts.iter().enumerate() {
+        let off = dx * s.ox + dy * s.oy;
         debug_assert!(len <= i);
-        // SAFETY: `len` counts the edges before `i` kept, so `len <= i < first.len()`,
+        // SAFETY: `len` counts the edges before `i` kept, so `len <= i < starts.len()`,
         // which is `out.len()` (sliced above).
         #[allow(unsafe_code, reason = "a packed list's index, at most the edge's, which the compiler cannot see")]
         let entry = unsafe { out.get_unchecked_mut(len) };
-        *entry = ActiveEdge { v1: EdgeCoord(v1), v2: EdgeCoord(v2), ..*b };
-        let (lo, hi) = (v1.min(v2), v1.max(v2));
-        let (near, far) = (hi <= 0, lo >= side);
-        let (is_in, is_out) = if b.lr() { (near, far) } else { (far, near) };
-        if is_out {
+        *entry = ActiveEdge { v1: EdgeCoord(s.first.v1.0 + off), v2: EdgeCoord(s.first.v2.0 + off), ..s.first };
+        let u = (off ^ s.flip) - s.flip;
+        if u >= s.t_out {
             // The rest of the list is not needed.
             return None;
         }
-        len += usize::from(!is_in);
+        len += usize::from(u > s.t_in);
     }
     Some(len)
 }
@@ -1651,7 +1692,7 @@ mod tests {
             for dy in 0..3u32 {
                 for dx in 0..3u32 {
                     let mut out = [ActiveEdge::EMPTY];
-                    let kept = derive_start_list(&[first], &mut out, dx, dy, units);
+                    let kept = derive_start_list(&[StartEdge::new(first, units)], &mut out, dx, dy);
                     let (px, py) = ((cx0 + i64::from(dx)) * side, (cy0 + i64::from(dy)) * side);
                     let want = ActiveEdge::at_cell(3, &e, px, py, side);
                     assert_eq!(out[0], want, "cell ({dx}, {dy}) of side {side}");
