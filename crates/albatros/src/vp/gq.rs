@@ -242,6 +242,14 @@ impl MaskMemory {
         (t & 0x3 | t >> 2 & 0xC | t >> 12 & 0x30 | t >> 14 & 0xC0) as u8
     }
 
+    /// The mask bits of the aligned 8 x 8 block of cells of Z-order index `bz` (its
+    /// cells' Z-order indices `bz << 6 | p`, at bit `p`). (Levels of fewer than 64
+    /// cells have one word, `bz` 0, the cells beyond the square reading 0.)
+    #[inline]
+    fn word(&self, bz: usize) -> u64 {
+        self.bits[bz]
+    }
+
     /// The mask bits of the four children of the parent cell `z` (of the level
     /// above), child `c` at bit `c`.
     #[inline]
@@ -425,6 +433,9 @@ pub struct CellProcessors {
     /// as its polygon, so `stride` only grows with a polygon of more edges than any
     /// before (the GP's clipper bounds none).
     lists: Vec<ActiveEdge>,
+    /// [`Self::start_at_size`]'s edges of the start's first cell, set up for
+    /// [`derive_start_list`] (scratch, `stride` entries).
+    start_edges: Vec<StartEdge>,
     /// Entries per list (see `lists`).
     stride: usize,
     /// Per level, the cells an opaque polygon covers wholly inside, queued by
@@ -433,9 +444,6 @@ pub struct CellProcessors {
     inside: Vec<Vec<usize>>,
     /// Bit `k`: `inside[k]` is not empty.
     queued: u32,
-    /// [`Self::start_at_size`]'s cells, as [`start_key`]s (scratch, kept here so
-    /// that no polygon clears it).
-    starts: [u64; MAX_START_CELLS],
 }
 
 /// A level-L cell handed to the SPPs, with the edges that cross it; or, from
@@ -508,10 +516,10 @@ impl CellProcessors {
             cleared_share: Share::WHOLE,
             share_pre_masked: false,
             lists: Vec::new(),
+            start_edges: Vec::new(),
             stride: 0,
             inside: vec![Vec::new(); root_level as usize + 1],
             queued: 0,
-            starts: [0; MAX_START_CELLS],
         }
     }
 
@@ -707,6 +715,7 @@ impl CellProcessors {
         if n > self.stride {
             self.stride = n.next_power_of_two();
             self.lists.resize(4 * self.stride * (self.root_level as usize + 1), ActiveEdge::EMPTY);
+            self.start_edges.resize(self.stride, StartEdge::EMPTY);
         }
         if FILL && self.start_at_size(start, poly, counters, spp) {
             return;
@@ -818,10 +827,11 @@ impl CellProcessors {
     /// touches; and a start cell's edges cost less than a split of its parent: they
     /// come from the block's first cell's by additions ([`derive_start_list`]), and
     /// a cell OUT for an edge is dropped there, as its parent's split would drop it.
-    /// Up to four cells each way (16) measured best (session 12: two each way, the
-    /// earlier rule, raster default 110.0 / terrain 349.3 M; four 103.0 / 336.0; five
-    /// 101.7 / 339.2; six 100.6 / 340.3, the sort of the cells in Z order and the
-    /// cells OUT costing more on `terrain`'s small polygons).
+    /// Up to eight cells each way (64) measured best once the cells came in Z order
+    /// with no sort ([`StartBlocks`]; session 13: raster default / terrain / city
+    /// 100.4 / 324.7 / 50.5 M with four, 96.5 / 323.2 / 49.4 with six, 94.8 / 323.8 /
+    /// 49.1 with eight; session 12, with a sort: two 110.0 / 349.3, four 103.0 /
+    /// 336.0, six 100.6 / 340.3).
     ///
     /// The same subpixels as the descent from `start`: every cell the box meets lies
     /// in these cells, the SPPs clip each code to the box
@@ -856,62 +866,57 @@ impl CellProcessors {
         let shift = self.root_level + 2 - level;
         let (cx0, cy0) = (bx0 >> shift, by0 >> shift);
         let (columns, rows) = ((bx1 >> shift) - cx0, (by1 >> shift) - cy0);
-        // The cells as keys `z << 8 | dx << 4 | dy` (`z` the Z-order index, `(dx, dy)`
-        // the cell in the block), in Z order.
-        let mut count = 0;
-        if columns <= 1 && rows <= 1 {
-            let (block, n) = block_in_z_order(cx0, cy0, columns == 1, rows == 1);
-            for (key, &(z, x, y)) in self.starts.iter_mut().zip(&block[..n]) {
-                *key = start_key(z, x - cx0, y - cy0);
-            }
-            count = n;
-        } else {
-            for dy in 0..=rows {
-                for dx in 0..=columns {
-                    self.starts[count] = start_key(morton(cx0 + dx, cy0 + dy), dx, dy);
-                    count += 1;
-                }
-            }
-            self.starts[..count].sort_unstable();
-        }
         let side = i64::from(self.side(level));
         let half = 1i64 << (EDGE_FRAC_BITS + (self.root_level + 1 - level));
         let first = 4 * self.stride * level as usize;
         let n = poly.edges.len();
-        // The block's first cell's edges, kept in the level's second list: every
-        // cell's are derived from them into the first ([`derive_start_list`]).
-        let base = first + self.stride;
+        // The block's first cell's edges: every cell's are derived from them into
+        // the level's first list ([`derive_start_list`]).
         let (x0, y0) = (i64::from(cx0) * side, i64::from(cy0) * side);
-        for (i, (a, e)) in self.lists[base..base + n].iter_mut().zip(poly.edges).enumerate() {
-            *a = ActiveEdge::at_cell(i as u32, e, x0, y0, side);
+        for (i, (s, e)) in self.start_edges[..n].iter_mut().zip(poly.edges).enumerate() {
+            *s = StartEdge::new(ActiveEdge::at_cell(i as u32, e, x0, y0, side), 2 * half);
         }
-        for i in 0..count {
-            let key = self.starts[i];
-            let (z, dx, dy) = ((key >> 8) as usize, (key >> 4 & 0xF) as u32, (key & 0xF) as u32);
-            let cell = Cell { level, x: cx0 + dx, y: cy0 + dy };
-            if self.covered(z, level, start.level + 1) {
-                continue;
+        // With the start level in use and no other VP's cells pre-masked, the level's
+        // own mark decides ([`Self::covered`]): an aligned 8 x 8 block's marks are one
+        // word, read once for its cells. A start cell's descent marks only itself on
+        // its level (and cells below it), so the word read before serves the others.
+        let one_read = !self.share_pre_masked && self.masks.has(level);
+        let blocks = StartBlocks::new(cx0, cy0, columns, rows);
+        for i in 0..blocks.count {
+            let (bz, bx, by, cells) = blocks.block(i);
+            let mut open = cells;
+            if one_read {
+                open &= !self.memories[level as usize].word(bz);
             }
-            let (lo, hi) = self.lists.split_at_mut(base);
-            let (inside, outside) = derive_start_list(&hi[..n], &mut lo[first..first + n], dx, dy, 2 * half);
-            if outside {
-                // OUT for an edge: its parent's split would drop it, and its own split
-                // finds every child OUT (no mark, no cell).
-                continue;
-            }
-            if inside {
-                // As `split_step` does with a child wholly inside.
-                if poly.opaque && self.masks.has(level) {
-                    self.memories[level as usize].set_z(z);
+            while open != 0 {
+                let p = open.trailing_zeros() as usize;
+                open &= open - 1;
+                let z = bz << 6 | p;
+                let (dx, dy) = (bx * 8 + Z_COLUMN[p] - cx0, by * 8 + Z_ROW[p] - cy0);
+                let cell = Cell { level, x: cx0 + dx, y: cy0 + dy };
+                if !one_read && self.covered(z, level, start.level + 1) {
+                    continue;
                 }
-                if self.hierarchical && poly.opaque {
-                    self.inside[level as usize].push(z);
-                    self.queued |= 1 << level;
+                let Some(len) = derive_start_list(&self.start_edges[..n], &mut self.lists[first..first + n], dx, dy)
+                else {
+                    // OUT for an edge: its parent's split would drop it, and its own split
+                    // finds every child OUT (no mark, no cell).
+                    continue;
+                };
+                if len == 0 {
+                    // As `split_step` does with a child wholly inside.
+                    if poly.opaque && self.masks.has(level) {
+                        self.memories[level as usize].set_z(z);
+                    }
+                    if self.hierarchical && poly.opaque {
+                        self.inside[level as usize].push(z);
+                        self.queued |= 1 << level;
+                    }
+                    self.fill(cell, z, poly.opaque, spp);
+                    continue;
                 }
-                self.fill(cell, z, poly.opaque, spp);
-                continue;
+                self.split::<false, true>(cell, z, first, len, half, poly, counters, spp);
             }
-            self.split::<false, true>(cell, z, first, n, half, poly, counters, spp);
         }
         true
     }
@@ -1115,79 +1120,196 @@ impl CellProcessors {
     }
 }
 
-/// The edges of the cell `(dx, dy)` cells along from the first of a block
-/// ([`CellProcessors::start_at_size`]), of side `side` ([`EdgeCoord`] units), from the
-/// first cell's (`first`, [`ActiveEdge::at_cell`]) into `out`: V at a border `k` cells
-/// further along the edge's lines is V1 plus `k` times `V2 - V1` (V is linear and
-/// exact: `V2 - V1` is the slope times the side), and a cell further across has its
-/// origin `side` further, so the same values as [`ActiveEdge::at_cell`] of the cell
-/// (tested by `start_lists_are_at_cell`) by two products and additions. Returns
-/// whether the cell is IN for every edge, and whether it is OUT for one (then the
-/// list is left unfinished: the cell is dropped), as its
-/// parent's split would code it: the line at or before the cell's near border (or
-/// at or beyond its far one) on the polygon's side, or on the other.
-#[inline(always)]
-fn derive_start_list(first: &[ActiveEdge], out: &mut [ActiveEdge], dx: u32, dy: u32, side: i64) -> (bool, bool) {
-    let (dx, dy) = (i64::from(dx), i64::from(dy));
-    let mut inside = true;
-    for (a, b) in out.iter_mut().zip(first) {
-        let (along, across) = if b.vertical() { (dy, dx) } else { (dx, dy) };
-        let d = b.v2.0 - b.v1.0;
-        let v1 = b.v1.0 + along * d - across * side;
-        let v2 = v1 + d;
-        *a = ActiveEdge { v1: EdgeCoord(v1), v2: EdgeCoord(v2), ..*b };
-        let (lo, hi) = (v1.min(v2), v1.max(v2));
-        let (near, far) = (hi <= 0, lo >= side);
-        let (is_in, is_out) = if b.lr() { (near, far) } else { (far, near) };
-        if is_out {
-            // The rest of the list is not needed.
-            return (false, true);
-        }
-        inside &= is_in;
+/// An edge of a start's first cell ([`CellProcessors::start_at_size`]), set up for
+/// [`derive_start_list`]: a cell `(dx, dy)` cells further has V `dx ox + dy oy` further
+/// (V at a border `k` cells further along the edge's lines is V1 plus `k` times `V2 -
+/// V1`, V being linear and exact, and a cell further across has its origin a side
+/// further), and with `u` that offset, negated when LR = 0 (`flip` all ones), the
+/// cell is OUT for the edge when `u >= t_out` and IN when `u <= t_in`.
+#[derive(Clone, Copy, Debug)]
+struct StartEdge {
+    /// The edge at the first cell ([`ActiveEdge::at_cell`]).
+    first: ActiveEdge,
+    /// V's change a cell along the columns and a cell along the rows.
+    ox: i64,
+    oy: i64,
+    /// The offsets (signed by `flip`) from which the cell is OUT, and up to which IN.
+    t_out: i64,
+    t_in: i64,
+    /// 0 for LR = 1, all ones for LR = 0.
+    flip: i64,
+}
+
+impl StartEdge {
+    /// An entry of the scratch list before it is written.
+    const EMPTY: Self = Self { first: ActiveEdge::EMPTY, ox: 0, oy: 0, t_out: 0, t_in: 0, flip: 0 };
+
+    /// Edge `first` of a start's first cell, of side `side` ([`EdgeCoord`] units). A
+    /// cell's parent's split codes the edge IN when the line lies at or before the
+    /// cell's near border (`hi <= 0`, the greatest of V1, V2 at the cell) on the
+    /// polygon's side, OUT when at or beyond its far one (`lo >= side`) (with LR = 0
+    /// the other way round); at a cell `off` further, `hi = hi0 + off`, `lo = lo0 + off`.
+    #[inline(always)]
+    fn new(first: ActiveEdge, side: i64) -> Self {
+        let d = first.v2.0 - first.v1.0;
+        let (ox, oy) = if first.vertical() { (-side, d) } else { (d, -side) };
+        let (lo0, hi0) = (first.v1.0.min(first.v2.0), first.v1.0.max(first.v2.0));
+        let (t_out, t_in, flip) = if first.lr() {
+            // OUT: lo0 + off >= side; IN: hi0 + off <= 0.
+            (side - lo0, -hi0, 0)
+        } else {
+            // OUT: hi0 + off <= 0, -off >= hi0; IN: lo0 + off >= side, -off <= lo0 - side.
+            (hi0, lo0 - side, -1)
+        };
+        Self { first, ox, oy, t_out, t_in, flip }
     }
-    (inside, false)
+}
+
+/// The edges of the cell `(dx, dy)` cells along from the first of a block
+/// ([`CellProcessors::start_at_size`]) from the first cell's (`starts`,
+/// [`StartEdge`]) into `out`: the same values as [`ActiveEdge::at_cell`] of the cell
+/// (tested by `start_lists_are_at_cell`) by two products and additions. Each edge is
+/// coded as the cell's parent's split would code it: IN (the line at or before the
+/// cell's near border, or at or beyond its far one, on the polygon's side), OUT (the
+/// same on the other side) or crossing. Returns `None` when the cell is OUT for an
+/// edge (the cell is dropped; the list is left unfinished), else how many edges cross
+/// it: only those are kept, packed at the front of `out`, as a split keeps only the
+/// crossing edges on a child's list (an edge IN for the whole cell codes its every
+/// child IN, which changes no AND of codes, and crosses none); `Some(0)` is a cell
+/// wholly inside. (Terrain's start cells, of about 3 edges, are IN for about a third
+/// of them.)
+#[inline(always)]
+fn derive_start_list(starts: &[StartEdge], out: &mut [ActiveEdge], dx: u32, dy: u32) -> Option<usize> {
+    let (dx, dy) = (i64::from(dx), i64::from(dy));
+    let out = &mut out[..starts.len()];
+    let mut len = 0;
+    for (i, s) in starts.iter().enumerate() {
+        let off = dx * s.ox + dy * s.oy;
+        debug_assert!(len <= i);
+        // SAFETY: `len` counts the edges before `i` kept, so `len <= i < starts.len()`,
+        // which is `out.len()` (sliced above).
+        #[allow(unsafe_code, reason = "a packed list's index, at most the edge's, which the compiler cannot see")]
+        let entry = unsafe { out.get_unchecked_mut(len) };
+        *entry = ActiveEdge { v1: EdgeCoord(s.first.v1.0 + off), v2: EdgeCoord(s.first.v2.0 + off), ..s.first };
+        let u = (off ^ s.flip) - s.flip;
+        if u >= s.t_out {
+            // The rest of the list is not needed.
+            return None;
+        }
+        len += usize::from(u > s.t_in);
+    }
+    Some(len)
 }
 
 /// The most cells each way of a start at the polygon's size
 /// ([`CellProcessors::start_at_size`]).
-const MAX_START_SPAN: u32 = 4;
-/// The most cells of a start at the polygon's size.
-const MAX_START_CELLS: usize = (MAX_START_SPAN * MAX_START_SPAN) as usize;
+const MAX_START_SPAN: u32 = 8;
+// A start's cells lie in at most 2 x 2 aligned 8 x 8 blocks ([`StartBlocks`]).
+const _: () = assert!(MAX_START_SPAN <= 8);
 
-/// The Z-order index's bits of a cell's column (even positions) and of its row (odd).
-const MORTON_X: usize = 0x5555_5555_5555_5555u64 as usize;
-/// See [`MORTON_X`].
-const MORTON_Y: usize = !MORTON_X;
+/// The cells of a start ([`CellProcessors::start_at_size`]), the block of cells
+/// `cx0 ..= cx1` by `cy0 ..= cy1` of one level (at most [`MAX_START_SPAN`] each way),
+/// as the aligned 8 x 8 blocks of cells it meets (at most 2 x 2), in Z order
+/// ([`Self::block`]). A block's 64 cells come after every cell of the blocks before it
+/// in Z order and before those of the blocks after it, and the bits of a block's word
+/// go in Z order: so the cells in the order of the blocks and of their bits are in Z
+/// order, the order the descent visits them, with no sort (`start_cells_are_in_z_order`
+/// checks it against a sort), and a block's word of mask bits is read at once.
+#[derive(Clone, Copy, Debug)]
+struct StartBlocks {
+    /// The first cell's column and row.
+    cx0: u32,
+    cy0: u32,
+    /// The last cell's column and row.
+    cx1: u32,
+    cy1: u32,
+    /// How many blocks: 1, 2 or 4.
+    count: u32,
+    /// Block `i`'s column is the first block's plus bit `step_x` of `i`, its row plus
+    /// bit `step_y` ([`Self::NO_STEP`]: none of `i < 4`).
+    step_x: u32,
+    step_y: u32,
+}
 
-/// The cells of a block of one or two columns (`wide`) and one or two rows (`tall`)
-/// from cell `(x0, y0)` of one level, as `(z, x, y)` with `z` the Z-order index, in Z
-/// order (the order the descent visits them; the first `count` entries). A 2 x 2 block
-/// goes row by row unless the border between its columns is that of a larger cell
-/// than the border between its rows (`x0` ends in more one bits than `y0`): then column
-/// by column (`block_is_in_z_order` checks it against a sort). The neighbours' indices
-/// come from the first's by a carry through the column's or the row's bits.
-#[inline(always)]
-fn block_in_z_order(x0: u32, y0: u32, wide: bool, tall: bool) -> ([(usize, u32, u32); 4], usize) {
-    let z0 = morton(x0, y0);
-    let zx = ((z0 | MORTON_Y).wrapping_add(1) & MORTON_X) | (z0 & MORTON_Y);
-    let zy = ((z0 | MORTON_X).wrapping_add(2) & MORTON_Y) | (z0 & MORTON_X);
-    let zxy = ((zx | MORTON_X).wrapping_add(2) & MORTON_Y) | (zx & MORTON_X);
-    let (right, below, corner) = ((zx, x0 + 1, y0), (zy, x0, y0 + 1), (zxy, x0 + 1, y0 + 1));
-    let first = (z0, x0, y0);
-    match (wide, tall) {
-        (false, false) => ([first; 4], 1),
-        (true, false) => ([first, right, first, first], 2),
-        (false, true) => ([first, below, first, first], 2),
-        (true, true) if x0.trailing_ones() > y0.trailing_ones() => ([first, below, right, corner], 4),
-        (true, true) => ([first, right, below, corner], 4),
+impl StartBlocks {
+    /// A bit of the blocks' index `i < 4` that is never set.
+    const NO_STEP: u32 = 2;
+
+    /// The blocks of the start of `columns + 1` by `rows + 1` cells from `(cx0, cy0)`.
+    /// Of 2 x 2 blocks, the two of a row go first, unless the border between the two
+    /// columns is that of a larger cell than the border between the rows (the first
+    /// block's column ends in more one bits than its row): then those of a column.
+    #[inline(always)]
+    fn new(cx0: u32, cy0: u32, columns: u32, rows: u32) -> Self {
+        let (cx1, cy1) = (cx0 + columns, cy0 + rows);
+        let (bx0, by0) = (cx0 >> 3, cy0 >> 3);
+        let (count, step_x, step_y) = match (cx1 >> 3 != bx0, cy1 >> 3 != by0) {
+            (false, false) => (1, Self::NO_STEP, Self::NO_STEP),
+            (true, false) => (2, 0, Self::NO_STEP),
+            (false, true) => (2, Self::NO_STEP, 0),
+            (true, true) if bx0.trailing_ones() > by0.trailing_ones() => (4, 1, 0),
+            (true, true) => (4, 0, 1),
+        };
+        Self { cx0, cy0, cx1, cy1, count, step_x, step_y }
+    }
+
+    /// Block `i < count` in Z order, as `(bz, bx, by, cells)`: its Z-order index `bz`
+    /// and place `(bx, by)` among the level's 8 x 8 blocks, and the start's cells in
+    /// it as a word in Z order (bit `p` for the cell of Z-order index `bz << 6 | p`,
+    /// at `(8 bx + Z_COLUMN[p], 8 by + Z_ROW[p])`).
+    #[inline(always)]
+    fn block(&self, i: u32) -> (usize, u32, u32, u64) {
+        let (bx, by) = ((self.cx0 >> 3) + (i >> self.step_x & 1), (self.cy0 >> 3) + (i >> self.step_y & 1));
+        // The start's first and last column and row in this block.
+        let a = if bx == self.cx0 >> 3 { self.cx0 & 7 } else { 0 };
+        let b = if bx == self.cx1 >> 3 { self.cx1 & 7 } else { 7 };
+        let c = if by == self.cy0 >> 3 { self.cy0 & 7 } else { 0 };
+        let d = if by == self.cy1 >> 3 { self.cy1 & 7 } else { 7 };
+        (morton(bx, by), bx, by, Z_COLUMNS[(a | b << 3) as usize] & Z_ROWS[(c | d << 3) as usize])
     }
 }
 
-/// A start cell's key for [`CellProcessors::start_at_size`]'s sort: its Z-order index
-/// `z` above its place `(dx, dy)` in the block (each below [`MAX_START_SPAN`]).
-#[inline(always)]
-fn start_key(z: usize, dx: u32, dy: u32) -> u64 {
-    (z as u64) << 8 | u64::from(dx) << 4 | u64::from(dy)
+/// The column of the cell of Z-order index `p` in an 8 x 8 block (`p`'s even bits).
+const Z_COLUMN: [u32; 64] = z_places(0);
+/// The row of the cell of Z-order index `p` in an 8 x 8 block (`p`'s odd bits).
+const Z_ROW: [u32; 64] = z_places(1);
+/// The cells of an 8 x 8 block in columns `a ..= b`, as a word in Z order, at `a | b << 3`.
+const Z_COLUMNS: [u64; 64] = z_ranges(&Z_COLUMN);
+/// The cells of an 8 x 8 block in rows `a ..= b`, as a word in Z order, at `a | b << 3`.
+const Z_ROWS: [u64; 64] = z_ranges(&Z_ROW);
+
+/// Builds [`Z_COLUMN`] (`odd` 0) and [`Z_ROW`] (`odd` 1): the bits of `p` at
+/// positions `2 i + odd` gathered.
+const fn z_places(odd: u32) -> [u32; 64] {
+    let mut table = [0; 64];
+    let mut p = 0;
+    while p < 64 {
+        let mut i = 0;
+        while i < 3 {
+            table[p] |= ((p as u32 >> (2 * i + odd)) & 1) << i;
+            i += 1;
+        }
+        p += 1;
+    }
+    table
+}
+
+/// Builds [`Z_COLUMNS`] and [`Z_ROWS`] from [`Z_COLUMN`] or [`Z_ROW`] (`place`).
+const fn z_ranges(place: &[u32; 64]) -> [u64; 64] {
+    let mut table = [0; 64];
+    let mut range = 0;
+    while range < 64 {
+        let (a, b) = (range as u32 & 7, range as u32 >> 3);
+        let mut p = 0;
+        while p < 64 {
+            if place[p] >= a && place[p] <= b {
+                table[range] |= 1 << p;
+            }
+            p += 1;
+        }
+        range += 1;
+    }
+    table
 }
 
 /// The children of `cell` (bit `c = dx + 2 dy`) that meet the box `bbox` (pixels,
@@ -1570,13 +1692,14 @@ mod tests {
             for dy in 0..3u32 {
                 for dx in 0..3u32 {
                     let mut out = [ActiveEdge::EMPTY];
-                    let (inside, outside) = derive_start_list(&[first], &mut out, dx, dy, units);
+                    let kept = derive_start_list(&[StartEdge::new(first, units)], &mut out, dx, dy);
                     let (px, py) = ((cx0 + i64::from(dx)) * side, (cy0 + i64::from(dy)) * side);
                     let want = ActiveEdge::at_cell(3, &e, px, py, side);
                     assert_eq!(out[0], want, "cell ({dx}, {dy}) of side {side}");
                     let (lo, hi) = (want.v1.0.min(want.v2.0), want.v1.0.max(want.v2.0));
                     let (near, far) = (hi <= 0, lo >= units);
-                    assert_eq!((inside, outside), if want.lr() { (near, far) } else { (far, near) });
+                    let (inside, outside) = if want.lr() { (near, far) } else { (far, near) };
+                    assert_eq!(kept, if outside { None } else { Some(usize::from(!inside)) });
                     checked += 1;
                 }
             }
@@ -1584,19 +1707,31 @@ mod tests {
         assert!(checked > 30_000, "{checked} cells checked");
     }
 
-    /// [`block_in_z_order`] gives a block's cells with their Z-order indices, sorted
-    /// by them: every block of up to 2 x 2 cells from the first 64 x 64 cells.
+    /// [`StartBlocks`] gives a start's cells, in the order of its blocks and of
+    /// their bits, with their Z-order indices, as a sort by them would: every block
+    /// of up to 8 x 8 cells from the first 40 x 40 cells.
     #[test]
-    fn block_is_in_z_order() {
-        for y0 in 0..64u32 {
-            for x0 in 0..64u32 {
-                for (wide, tall) in [(false, false), (true, false), (false, true), (true, true)] {
-                    let (cells, count) = block_in_z_order(x0, y0, wide, tall);
-                    let mut want: Vec<(usize, u32, u32)> = (y0..=y0 + u32::from(tall))
-                        .flat_map(|y| (x0..=x0 + u32::from(wide)).map(move |x| (morton(x, y), x, y)))
+    fn start_cells_are_in_z_order() {
+        for cy0 in 0..40u32 {
+            for cx0 in 0..40u32 {
+                for (columns, rows) in (0..64u32).map(|i| (i & 7, i >> 3)) {
+                    let blocks = StartBlocks::new(cx0, cy0, columns, rows);
+                    let mut got = Vec::new();
+                    for i in 0..blocks.count {
+                        let (bz, bx, by, cells) = blocks.block(i);
+                        assert_eq!(bz, morton(bx, by));
+                        let mut open = cells;
+                        while open != 0 {
+                            let p = open.trailing_zeros() as usize;
+                            open &= open - 1;
+                            got.push((bz << 6 | p, bx * 8 + Z_COLUMN[p], by * 8 + Z_ROW[p]));
+                        }
+                    }
+                    let mut want: Vec<(usize, u32, u32)> = (cy0..=cy0 + rows)
+                        .flat_map(|y| (cx0..=cx0 + columns).map(move |x| (morton(x, y), x, y)))
                         .collect();
                     want.sort_unstable();
-                    assert_eq!(&cells[..count], &want[..], "block at ({x0}, {y0}), {wide} {tall}");
+                    assert_eq!(got, want, "start at ({cx0}, {cy0}), {columns} x {rows}");
                 }
             }
         }
@@ -1836,7 +1971,8 @@ mod tests {
     /// (the marks of each feeding the next), the descent with counting off, with
     /// counting on, and the filling descent reach the same cells with the same
     /// active edges (the filling descent less closed bands of empty codes) and leave
-    /// the same marks; the counters of the counting descent
+    /// the same marks (the filling descent a part of them above its start levels, the
+    /// same on the last level); the counters of the counting descent
     /// are those of the machine's every step (tested by the golden statistics).
     #[test]
     fn descents_agree_under_masks() {
@@ -1874,8 +2010,16 @@ mod tests {
             filled_drops_only_empty(&filled, &want, &edges, bbox, &format!("triangle {k} {p:?}"));
             for level in 1..=off.root_level as usize {
                 assert_eq!(on.memories[level].bits, off.memories[level].bits, "level {level}, triangle {k}");
-                assert_eq!(filling.memories[level].bits, off.memories[level].bits, "level {level}, triangle {k}");
+                // The filling descent marks a cell wholly inside above its start level
+                // only from the start level down ([`CellProcessors::start_at_size`]):
+                // a part of the marks, closed downward, the same on the last level.
+                let (got, all) = (&filling.memories[level].bits, &off.memories[level].bits);
+                assert!(got.iter().zip(all).all(|(g, a)| g & !a == 0), "level {level}, triangle {k}");
+                if level == off.root_level as usize {
+                    assert_eq!(got, all, "level {level}, triangle {k}");
+                }
             }
+            assert!(filling.marks_closed_downward(), "triangle {k}");
             reached += want.len();
         }
         assert!(reached > 10_000, "{reached}");
