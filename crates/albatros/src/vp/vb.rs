@@ -4290,6 +4290,37 @@ mod tests {
         }
     }
 
+    /// A random cell of the F1 tests, at one of the 3 x 2 cells of a 12 x 8 area: its
+    /// pixel, its 16 sets (each empty in `empty` cases of `empty + 3`, whole in one,
+    /// random in two) and first-write flags, and one row in `row_every` made whole
+    /// first fragments.
+    fn random_f1_cell(rng: &mut Rng, empty: u64, row_every: u64) -> (u32, u32, [u16; 16], u16) {
+        let (px, py) = ((rng.next() % 3) as u32 * 4, (rng.next() % 2) as u32 * 4);
+        let mut sets: [u16; 16] = std::array::from_fn(|_| match rng.next() % (empty + 3) {
+            k if k < empty => 0,
+            k if k == empty => FULL,
+            _ => rng.next() as u16,
+        });
+        let mut first = rng.next() as u16;
+        for row in 0..4 {
+            if rng.next().is_multiple_of(row_every) {
+                sets[4 * row..4 * row + 4].fill(FULL);
+                first |= ROW_BITS << (4 * row);
+            }
+        }
+        (px, py, sets, first)
+    }
+
+    /// The sets of a cell at pixel `(px, py)` emptied beyond a `w x h` screen (its
+    /// pixels there have no visible subpixel).
+    fn off_screen_hidden(sets: &mut [u16; 16], px: u32, py: u32, w: usize, h: usize) {
+        for (i, set) in sets.iter_mut().enumerate() {
+            if px as usize + i % 4 >= w || py as usize + i / 4 >= h {
+                *set = 0;
+            }
+        }
+    }
+
     /// Every copy of the 8-bit F1 the processor can run (AVX2) gives the
     /// portable copy's words: random cells (whole and partial pixels, first writes
     /// and read-modify-writes, rows of whole first fragments, cells past the right
@@ -4319,27 +4350,11 @@ mod tests {
         let mut got = vec![expect.clone(); copies.len()];
         let odd = [0.0, -0.0, 1.0, 0.999_999_94, 1.000_000_1, 1e-3, 2.4e-3, 1e-40, f32::INFINITY, -1.0, f32::NAN];
         for round in 0..20_000 {
-            let (px, py) = ((rng.next() % 3) as u32 * 4, (rng.next() % 2) as u32 * 4);
-            let mut sets: [u16; 16] = std::array::from_fn(|_| match rng.next() % 4 {
-                0 => 0,
-                1 => FULL,
-                _ => rng.next() as u16,
-            });
-            let mut first = rng.next() as u16;
-            for row in 0..4 {
-                if rng.next().is_multiple_of(3) {
-                    sets[4 * row..4 * row + 4].fill(FULL);
-                    first |= ROW_BITS << (4 * row);
-                }
-            }
+            let (px, py, mut sets, mut first) = random_f1_cell(&mut rng, 1, 3);
             if round % 7 == 0 {
                 first = FULL;
             }
-            for (i, set) in sets.iter_mut().enumerate() {
-                if px as usize + i % 4 >= w || py as usize + i / 4 >= h {
-                    *set = 0;
-                }
-            }
+            off_screen_hidden(&mut sets, px, py, w, h);
             // Half the cells of near colours (a component's ROM addresses in a
             // window of the table, or just past it), now and then an odd one.
             let near = round % 2 == 0;
@@ -4378,27 +4393,11 @@ mod tests {
         let (w, h) = (10usize, 7usize);
         let (mut expect, mut got) = (vec![0u32; w * h], vec![0u32; w * h]);
         for round in 0..20_000 {
-            let (px, py) = ((rng.next() % 3) as u32 * 4, (rng.next() % 2) as u32 * 4);
-            let mut sets: [u16; 16] = std::array::from_fn(|_| match rng.next() % 5 {
-                0 | 1 => 0,
-                2 => FULL,
-                _ => rng.next() as u16,
-            });
-            let mut first = rng.next() as u16;
-            for row in 0..4 {
-                if rng.next().is_multiple_of(4) {
-                    sets[4 * row..4 * row + 4].fill(FULL);
-                    first |= ROW_BITS << (4 * row);
-                }
-            }
+            let (px, py, mut sets, mut first) = random_f1_cell(&mut rng, 2, 4);
             if round % 11 == 0 {
                 (sets, first) = ([FULL; 16], FULL);
             }
-            for (i, set) in sets.iter_mut().enumerate() {
-                if px as usize + i % 4 >= w || py as usize + i / 4 >= h {
-                    *set = 0;
-                }
-            }
+            off_screen_hidden(&mut sets, px, py, w, h);
             let color: [f32; 3] = std::array::from_fn(|_| match rng.next() % 6 {
                 0 => 0.0,
                 1 => 1.0,
