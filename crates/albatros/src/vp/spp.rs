@@ -43,7 +43,7 @@ pub const FULL: u16 = 0xFFFF;
 /// descents could not start at the cells of the polygon's size
 /// ([`super::gq::CellProcessors::descend_filling`]). Two comparisons per border in
 /// hardware; here a test skips the clip for cells wholly inside the box (the AVX2
-/// step clips every fragment with no branch: [`box_outside_lanes_avx2`]).
+/// step clips every fragment with no branch: [`box_outside_at_avx2`]).
 #[inline]
 pub fn box_pixels(px: u32, py: u32, bbox: [u32; 4]) -> u16 {
     let [x0, x1, y0, y1] = bbox;
@@ -514,7 +514,7 @@ macro_rules! table_code_avx2_body {
 }
 
 /// The pixels of `pixels` (bit `4 y + x`) as 16-bit lanes of all ones, the others 0:
-/// the reference for [`box_outside_lanes_avx2`]'s test.
+/// the reference for [`box_outside_at_avx2`]'s test.
 #[cfg(all(test, target_arch = "x86_64"))]
 #[target_feature(enable = "avx2")]
 #[inline]
@@ -540,29 +540,6 @@ fn pixel_lanes_avx2(pixels: u16) -> std::arch::x86_64::__m256i {
         (1u16 << 15) as i16,
     );
     _mm256_cmpeq_epi16(_mm256_and_si256(_mm256_set1_epi16(pixels as i16), bits), bits)
-}
-
-/// The complement of [`box_pixels`] of the cell at pixel `(px, py)`, as 16-bit lanes
-/// of all ones (the pixels outside the box) or 0, with no branch: 55 % of default's
-/// fragments with edges meet a border of their polygon's box, so `box_pixels`' test
-/// for a cell wholly inside went either way (and its clip cost some 45 instructions
-/// where it applied). Lanes 0-3 of the 32-bit registers are the cell's pixel columns,
-/// 4-7 its rows; pixel `p + i` of an axis lies in `[a, b)` when `p + i - a < b -sat a`
-/// as unsigned numbers (for `p + i < a` the difference wraps to at least `2^32 - a`,
-/// more than any `b - a`; a reversed box has no width), so a lane is outside when
-/// `max(p + i - a, width) == p + i - a`; the caller clips by `andnot`. (`box_pixels`'
-/// `span`, its saturating differences, took 4 instructions more.) The columns'
-/// lanes packed to 16 bits and repeated make lane `4 y + x` column `x`'s; the rows'
-/// lanes, each widened to two 16-bit lanes by the dword permute, row `y`'s; a pixel
-/// is outside when its column or its row is. `px + 3` and `py + 3` must not wrap (a
-/// pixel of a screen; so does `box_pixels`' `px + CELL_SIDE`). The AVX2 step makes
-/// the box's lanes once a polygon and calls [`box_outside_at_avx2`]; this is the
-/// two together, for the tests.
-#[cfg(all(test, target_arch = "x86_64"))]
-#[target_feature(enable = "avx2")]
-#[inline]
-fn box_outside_lanes_avx2(px: u32, py: u32, bbox: [u32; 4]) -> std::arch::x86_64::__m256i {
-    box_outside_at_avx2(px, py, &BoxLanes::new(bbox))
 }
 
 /// A polygon's box as [`box_outside_at_avx2`] reads it, made once a polygon
@@ -644,9 +621,22 @@ impl BoxLanes {
     }
 }
 
-/// [`box_outside_lanes_avx2`] of a box whose lanes were made once a polygon
-/// ([`BoxLanes`]): the same lanes (tested), some 12 instructions a fragment fewer
-/// than making the box's lanes again for every fragment.
+/// The complement of [`box_pixels`] of the cell at pixel `(px, py)`, as 16-bit lanes
+/// of all ones (the pixels outside the box) or 0, with no branch: 55 % of default's
+/// fragments with edges meet a border of their polygon's box, so `box_pixels`' test
+/// for a cell wholly inside went either way (and its clip cost some 45 instructions
+/// where it applied). Lanes 0-3 of the 32-bit registers are the cell's pixel columns,
+/// 4-7 its rows; pixel `p + i` of an axis lies in `[a, b)` when `p + i - a < b -sat a`
+/// as unsigned numbers (for `p + i < a` the difference wraps to at least `2^32 - a`,
+/// more than any `b - a`; a reversed box has no width), so a lane is outside when
+/// `max(p + i - a, width) == p + i - a`; the caller clips by `andnot`. (`box_pixels`'
+/// `span`, its saturating differences, took 4 instructions more.) The columns'
+/// lanes packed to 16 bits and repeated make lane `4 y + x` column `x`'s; the rows'
+/// lanes, each widened to two 16-bit lanes by the dword permute, row `y`'s; a pixel
+/// is outside when its column or its row is. `px + 3` and `py + 3` must not wrap (a
+/// pixel of a screen; so does `box_pixels`' `px + CELL_SIDE`). The box's part, each
+/// border less the lane's pixel and the width, is made once a polygon ([`BoxLanes`]):
+/// some 12 instructions a fragment fewer than making it for every fragment.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
@@ -2175,13 +2165,13 @@ mod tests {
         }
     }
 
-    /// [`box_outside_lanes_avx2`] is the complement of [`pixel_lanes_avx2`] of
+    /// [`box_outside_at_avx2`] of [`BoxLanes::new`] is the complement of [`pixel_lanes_avx2`] of
     /// [`box_pixels`], lane by lane: boxes around,
     /// across and inside cells, empty, reversed and unbounded, near the origin and near
     /// the end of `u32`.
     #[cfg(target_arch = "x86_64")]
     #[test]
-    fn box_outside_lanes_avx2_are_box_pixels() {
+    fn box_outside_lanes_are_box_pixels() {
         if !has_avx2() {
             return;
         }
@@ -2212,7 +2202,10 @@ mod tests {
             let (got, want) = unsafe {
                 let mut got = [0u16; 16];
                 let mut want = [0u16; 16];
-                std::arch::x86_64::_mm256_storeu_si256(got.as_mut_ptr().cast(), box_outside_lanes_avx2(px, py, bbox));
+                std::arch::x86_64::_mm256_storeu_si256(
+                    got.as_mut_ptr().cast(),
+                    box_outside_at_avx2(px, py, &BoxLanes::new(bbox)),
+                );
                 std::arch::x86_64::_mm256_storeu_si256(
                     want.as_mut_ptr().cast(),
                     pixel_lanes_avx2(box_pixels(px, py, bbox)),
