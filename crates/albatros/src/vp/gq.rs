@@ -155,8 +155,8 @@ impl MaskLevels {
 /// four children's mask bits together), and a cell's parent is `z >> 2`.
 ///
 /// Cells of the square wholly off the screen are set when the memory is cleared, so
-/// they always read as covered (pre-masked), like the cells of other VPs of a matrix
-/// at the tile level ([`Share`]).
+/// they always read as covered (pre-masked), and so are the cells that hold no pixel
+/// of the VP's share of a matrix ([`Share`], [`MaskMemory::pre_mask`]).
 #[derive(Clone, Debug, Default)]
 pub struct MaskMemory {
     /// Cells per row that touch the screen.
@@ -265,6 +265,46 @@ impl MaskMemory {
         self.bits[first >> 6] |= u64::from(nibble & 0xF) << (first & 63);
     }
 
+    /// Sets every cell of the square that holds no pixel of a share: cell `(cx, cy)`
+    /// when `!columns(cx) || !rows(cy)` (a share is a product of columns and rows,
+    /// [`Share::owns_pixel`]). An aligned 8 x 8 block at a time: its word is the or of
+    /// its unheld columns' cells and its unheld rows' ([`Z_COLUMNS`], [`Z_ROWS`]), the
+    /// columns' words found once per block column (in `scratch`, kept from call to
+    /// call). (A level of fewer than 64 cells, one word, cell by cell: the bits
+    /// beyond its square must read 0.)
+    fn pre_mask(
+        &mut self,
+        level: u32,
+        columns: impl Fn(u32) -> bool,
+        rows: impl Fn(u32) -> bool,
+        scratch: &mut Vec<u64>,
+    ) {
+        let side = 1u32 << level;
+        if side < BLOCK_SIDE {
+            for cy in 0..side {
+                for cx in 0..side {
+                    if !columns(cx) || !rows(cy) {
+                        self.set(cx as usize, cy as usize);
+                    }
+                }
+            }
+            return;
+        }
+        // The cells of the block's unheld lines (`line` of the 8 in it), as a word.
+        let unheld = |held: &dyn Fn(u32) -> bool, first: u32, lines: &[u64; 64]| {
+            (0..BLOCK_SIDE).filter(|&i| !held(first + i)).fold(0, |w, i| w | lines[(i | i << 3) as usize])
+        };
+        let blocks = side / BLOCK_SIDE;
+        scratch.clear();
+        scratch.extend((0..blocks).map(|bx| unheld(&columns, bx * BLOCK_SIDE, &Z_COLUMNS)));
+        for by in 0..blocks {
+            let row_word = unheld(&rows, by * BLOCK_SIDE, &Z_ROWS);
+            for (bx, &column_word) in (0..blocks).zip(scratch.iter()) {
+                self.bits[morton(bx, by)] |= column_word | row_word;
+            }
+        }
+    }
+
     /// Back to the state a frame starts from.
     fn clear(&mut self) {
         self.bits.copy_from_slice(&self.cleared);
@@ -288,8 +328,9 @@ impl MaskMemory {
 /// `tx % p == i` and `ty % q == j`. `tile = 1` is P3's interleave by single pixels
 /// (every VP works on the whole screen, on a sparse raster); `tile = 4 * 2^m` is an
 /// interleave by whole cells of level `L - m`. Everything outside the share is
-/// pre-masked, like the area off the screen, so a VP never spends a cell or a
-/// subpixel on it below the tile's level.
+/// pre-masked, like the area off the screen: a cell that holds no pixel of the share
+/// reads as covered on every level, so a VP never spends a cell on it (with tiles
+/// under a cell, the SPPs keep to the share: [`super::spp`]).
 ///
 /// A share may also be cut to a strip of pixel columns `strip.0 .. strip.1`
 /// (multiples of the tile side): a matrix of VPs side by side in vertical strips,
@@ -361,6 +402,26 @@ impl Share {
     pub fn meets_columns(&self, x0: u32, x1: u32) -> bool {
         x0 < self.strip.1 && x1 > self.strip.0
     }
+
+    /// Whether the share holds pixels of any of columns `x0 .. x1`
+    /// ([`Self::owns_column`] of one of them): the columns in the strip span tile
+    /// columns `t0 ..= t1`, and one of those is the VP's when the first of the VP's
+    /// from `t0` on, `(i - t0) mod p` further, is no further than `t1`.
+    pub fn holds_columns(&self, x0: u32, x1: u32) -> bool {
+        let (x0, x1) = (x0.max(self.strip.0), x1.min(self.strip.1));
+        x0 < x1 && Self::holds_tiles(x0 / self.tile, (x1 - 1) / self.tile, self.p, self.i)
+    }
+
+    /// Whether the share holds pixels of any of rows `y0 .. y1` ([`Self::owns_row`]
+    /// of one of them), as [`Self::holds_columns`] (rows are not cut).
+    pub fn holds_rows(&self, y0: u32, y1: u32) -> bool {
+        y0 < y1 && Self::holds_tiles(y0 / self.tile, (y1 - 1) / self.tile, self.q, self.j)
+    }
+
+    /// Whether one of tile lines `t0 ..= t1` is `k`'s of `n` interleaved.
+    fn holds_tiles(t0: u32, t1: u32, n: u32, k: u32) -> bool {
+        (k + n - t0 % n) % n <= t1 - t0
+    }
 }
 
 /// A cell: level and position (cell indices at that level).
@@ -421,10 +482,8 @@ pub struct CellProcessors {
     memories: Vec<MaskMemory>,
     /// The share the memories' cleared states were made for.
     cleared_share: Share,
-    /// Whether the cleared states hold other VPs' cells, pre-masked on the share's
-    /// tile level only ([`Self::pre_mask_share`]). Without them the marks are closed
-    /// downward and [`Self::covered`] reads one level.
-    share_pre_masked: bool,
+    /// [`MaskMemory::pre_mask`]'s words of block columns (scratch).
+    pre_mask_columns: Vec<u64>,
     /// Active-edge lists, four per level, each `stride` entries long, all in one
     /// vector: level `k`'s block of four at `4 k stride`, child `c`'s list at `c stride`
     /// in it. A cell's children's lists are on the level below, filled in one pass
@@ -514,7 +573,7 @@ impl CellProcessors {
             recorder: None,
             memories,
             cleared_share: Share::WHOLE,
-            share_pre_masked: false,
+            pre_mask_columns: Vec::new(),
             lists: Vec::new(),
             start_edges: Vec::new(),
             stride: 0,
@@ -534,25 +593,29 @@ impl CellProcessors {
         }
     }
 
-    /// Makes the memories' cleared states for `self.share`: the cells of other VPs
-    /// set at the share's tile level.
+    /// Makes the memories' cleared states for `self.share`: on every level, each
+    /// cell that holds no pixel of the share is set, as the cells off the screen are.
+    /// A cell wholly outside has its descendants wholly outside, so the marks stay
+    /// closed downward ([`Self::covered`] reads one level), and a start cell or a
+    /// child outside the share is dropped where the descent meets it, not split down
+    /// to the tile level. (Tiles under a cell, P3's pixel interleave: every cell holds
+    /// pixels of the share, nothing is set; the SPPs keep to it.) A strip matrix's
+    /// shares change from frame to frame: a block of cells at a time,
+    /// [`MaskMemory::pre_mask`].
     fn pre_mask_share(&mut self) {
         for m in &mut self.memories {
             m.reset_cleared();
         }
         let share = self.share;
-        self.share_pre_masked = !share.is_whole() && share.tile >= 4 && share.tile <= self.side(0);
-        if self.share_pre_masked {
-            let level = self.root_level + 2 - share.tile.trailing_zeros();
-            let m = &mut self.memories[level as usize];
-            for cy in 0..m.rows {
-                for cx in 0..m.stride {
-                    if !share.owns_pixel(cx as u32 * share.tile, cy as u32 * share.tile) {
-                        m.set(cx, cy);
-                    }
-                }
+        if !share.is_whole() && share.tile >= CELL_SIDE {
+            for level in 0..=self.root_level {
+                let side = self.side(level);
+                let m = &mut self.memories[level as usize];
+                let columns = |cx: u32| share.holds_columns(cx * side, (cx + 1) * side);
+                let rows = |cy: u32| share.holds_rows(cy * side, (cy + 1) * side);
+                m.pre_mask(level, columns, rows, &mut self.pre_mask_columns);
+                m.keep_as_cleared();
             }
-            m.keep_as_cleared();
         }
         self.cleared_share = share;
     }
@@ -748,33 +811,21 @@ impl CellProcessors {
     /// in use has every descendant on the deeper levels in use marked too (a cell is
     /// marked IN on the way down and its subtree filled below it, [`Self::fill`];
     /// Greene's rule marks a parent only when its four children are marked; the cells
-    /// off the screen are pre-masked on every level; tested by
-    /// `marks_are_closed_downward`). So, unless other VPs' cells are pre-masked (on
-    /// the share's tile level only: [`Self::pre_mask_share`], a matrix of VPs), the
-    /// cell's ancestor on the deepest level in use decides alone: one read where the
-    /// walk up the levels took one per level for every polygon not hidden (most of
-    /// `many`'s triangles are hidden at subpixel level, below the marks).
-    /// With other VPs' cells pre-masked, the levels in use are walked, the deepest
-    /// first (a hidden polygon's smallest cells are the likeliest covered).
+    /// off the screen, and those outside a matrix VP's share, are pre-masked on every
+    /// level, [`Self::pre_mask_share`]; tested by `marks_are_closed_downward` and
+    /// `share_pre_masks_are_closed_downward`). So the cell's ancestor on the deepest
+    /// level in use decides alone: one read where the walk up the levels took one per
+    /// level for every polygon not hidden (most of `many`'s triangles are hidden at
+    /// subpixel level, below the marks).
     #[inline(always)]
     fn covered(&self, z: usize, level: u32, from: u32) -> bool {
-        let mut levels = self.masks.0 & ((2u32 << level) - 1) & !((1u32 << from) - 1);
-        if !self.share_pre_masked {
-            if levels == 0 {
-                return false;
-            }
-            let k = 31 - levels.leading_zeros();
-            return self.memories[k as usize].get_z(z >> (2 * (level - k)));
+        let levels = self.masks.0 & ((2u32 << level) - 1) & !((1u32 << from) - 1);
+        if levels == 0 {
+            return false;
         }
-        while levels != 0 {
-            let k = 31 - levels.leading_zeros();
-            levels &= !(1 << k);
-            // The ancestor on level `k`: two Z-order bits per level up.
-            if self.memories[k as usize].get_z(z >> (2 * (level - k))) {
-                return true;
-            }
-        }
-        false
+        // The ancestor on level `k`: two Z-order bits per level up.
+        let k = 31 - levels.leading_zeros();
+        self.memories[k as usize].get_z(z >> (2 * (level - k)))
     }
 
     /// Whether the marks are closed downward over the levels in use (see
@@ -876,11 +927,11 @@ impl CellProcessors {
         for (i, (s, e)) in self.start_edges[..n].iter_mut().zip(poly.edges).enumerate() {
             *s = StartEdge::new(ActiveEdge::at_cell(i as u32, e, x0, y0, side), 2 * half);
         }
-        // With the start level in use and no other VP's cells pre-masked, the level's
-        // own mark decides ([`Self::covered`]): an aligned 8 x 8 block's marks are one
-        // word, read once for its cells. A start cell's descent marks only itself on
-        // its level (and cells below it), so the word read before serves the others.
-        let one_read = !self.share_pre_masked && self.masks.has(level);
+        // With the start level in use, the level's own mark decides
+        // ([`Self::covered`]): an aligned 8 x 8 block's marks are one word, read once
+        // for its cells. A start cell's descent marks only itself on its level (and
+        // cells below it), so the word read before serves the others.
+        let one_read = self.masks.has(level);
         let blocks = StartBlocks::new(cx0, cy0, columns, rows);
         for i in 0..blocks.count {
             let (bz, bx, by, cells) = blocks.block(i);
@@ -1268,6 +1319,11 @@ impl StartBlocks {
         (morton(bx, by), bx, by, Z_COLUMNS[(a | b << 3) as usize] & Z_ROWS[(c | d << 3) as usize])
     }
 }
+
+/// The side of an aligned block of cells whose mask bits are one word (8 x 8 = 64).
+const BLOCK_SIDE: u32 = 8;
+/// The side of a last-level cell in pixels.
+const CELL_SIDE: u32 = super::spp::CELL_SIDE;
 
 /// The column of the cell of Z-order index `p` in an 8 x 8 block (`p`'s even bits).
 const Z_COLUMN: [u32; 64] = z_places(0);
@@ -2089,7 +2145,72 @@ mod tests {
         }
     }
 
+    /// A matrix VP's share is pre-masked on every level
+    /// ([`CellProcessors::pre_mask_share`]): after `clear`, a cell is marked exactly
+    /// when it is wholly off the screen or (tiles of whole cells) holds no pixel of
+    /// the share, pixel by pixel ([`Share::owns_pixel`]); the marks are closed
+    /// downward. The shares follow one another on one VP, as a strip matrix's move
+    /// from frame to frame: nothing of the last one stays.
+    #[test]
+    fn share_pre_masks_are_exact_and_closed_downward() {
+        let (w, h) = (200u32, 150u32);
+        let shares = [
+            Share::interleaved(16, 3, 2, 2, 1),
+            Share::WHOLE,
+            Share::strip(16, 0, 96),
+            Share::strip(16, 96, 200),
+            Share::strip(16, 48, 48),
+            Share::strip(8, 0, 200),
+            Share::interleaved(4, 2, 1, 1, 0),
+            Share::interleaved(64, 2, 2, 0, 1),
+            Share::interleaved(2, 2, 2, 1, 1),
+            Share::interleaved(256, 1, 2, 0, 1),
+            Share::strip(16, 0, 96),
+        ];
+        let mut gq = CellProcessors::new(w, h, MaskLevels::ALL);
+        for share in shares {
+            gq.share = share;
+            gq.clear();
+            assert!(gq.marks_closed_downward(), "{share:?}");
+            let masked = !share.is_whole() && share.tile >= CELL_SIDE;
+            for level in 0..=gq.root_level {
+                let (side, cells) = (gq.side(level), 1u32 << level);
+                for cy in 0..cells {
+                    for cx in 0..cells {
+                        let (x0, y0) = (cx * side, cy * side);
+                        let off = x0 >= w || y0 >= h;
+                        let holds = (y0..y0 + side).any(|y| (x0..x0 + side).any(|x| share.owns_pixel(x, y)));
+                        let want = off || (masked && !holds);
+                        let got = gq.memories[level as usize].get(cx as usize, cy as usize);
+                        assert_eq!(got, want, "{share:?}: level {level}, cell ({cx}, {cy})");
+                    }
+                }
+            }
+        }
+    }
+
     proptest::proptest! {
+        /// [`Share::holds_columns`] and [`Share::holds_rows`] say whether one of the
+        /// columns (rows) is the share's, as [`Share::owns_column`]
+        /// ([`Share::owns_row`]) of each in turn.
+        #[test]
+        fn a_share_holds_lines_when_it_owns_one(
+            tile_log in 0u32..6,
+            (p, i) in (1u32..5, 0u32..4),
+            (q, j) in (1u32..5, 0u32..4),
+            strip in proptest::option::of((0u32..300, 0u32..300)),
+            a in 0u32..400,
+            n in 0u32..200,
+        ) {
+            let tile = 1 << tile_log;
+            let mut share = Share::interleaved(tile, p, q, i % p, j % q);
+            if let Some((s0, s1)) = strip {
+                share.strip = (s0.min(s1), s0.max(s1));
+            }
+            proptest::prop_assert_eq!(share.holds_columns(a, a + n), (a..a + n).any(|x| share.owns_column(x)));
+            proptest::prop_assert_eq!(share.holds_rows(a, a + n), (a..a + n).any(|y| share.owns_row(y)));
+        }
+
         /// Marking covered cells all at once leaves the mask memories as marking
         /// them one by one does, in any order, over any earlier marks (IN cells of
         /// every level, cells marked before) and with any levels in use.

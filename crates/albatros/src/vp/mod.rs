@@ -310,15 +310,12 @@ impl VideoProcessor {
                 if bbox[0] >= bbox[1] || bbox[2] >= bbox[3] {
                     continue;
                 }
-                if !STATS && share.strip != gq::Share::ALL_COLUMNS {
-                    // The GQ never leaves the polygon's starting cell: a polygon whose
-                    // starting cell is outside this VP's strip would find every cell
-                    // pre-masked (with counting on, it is counted as the machine does).
-                    let start = gq.bounding_cell(bbox);
-                    let side = gq.side(start.level);
-                    if !share.meets_columns(start.x * side, (start.x + 1) * side) {
-                        continue;
-                    }
+                if !STATS && !share.meets_columns(bbox[0], bbox[1]) {
+                    // Every subpixel of the polygon lies in its box: a polygon whose
+                    // box misses this VP's strip has nothing here (its start cells
+                    // would all read pre-masked). With counting on, it is counted as
+                    // the machine does.
+                    continue;
                 }
                 let opaque = poly.transparency == 0;
                 let gp = GqPolygon { edges, opaque, bbox };
