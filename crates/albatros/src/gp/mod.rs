@@ -1109,9 +1109,9 @@ impl FrameBuilder<'_> {
             // in registers, and when it lies inside the window (class 1) set up
             // from them with no scratch list: the operations of the general path
             // below, in the same order, without its loops and pushes.
-            // With no cache (`many`'s tree), in the copy compiled for AVX2, the
-            // three vertices are placed in AVX2 lanes and kept there for the
-            // projection ([`TriangleLanes`]).
+            // In the copy compiled for AVX2 the three vertices are projected in
+            // AVX2 lanes ([`TriangleLanes`]); with no cache (`many`'s tree) also
+            // placed in them.
             let ([a, b, c], lanes) = match ids {
                 Some(&[i, j, k]) => {
                     let places = &mut scratch.places;
@@ -1121,7 +1121,11 @@ impl FrameBuilder<'_> {
                         light.cached_place(places, k, c),
                     );
                     (and, or) = (ca & cb & cc, ca | cb | cc);
-                    (light.lit_triangle([a, b, c], [pa, pb, pc]), None)
+                    // SAFETY: with `AVX2` this runs only in `face_avx2` (through
+                    // `face_body::<true>`), after detection.
+                    #[allow(unsafe_code, reason = "the AVX2 lanes in the face path compiled for AVX2")]
+                    let lanes = unsafe { TriangleLanes::of::<AVX2>([pa, pb, pc]) };
+                    (light.lit_triangle([a, b, c], [pa, pb, pc]), lanes)
                 }
                 _ => {
                     // SAFETY: with `AVX2` this runs only in `face_avx2` (through
@@ -1418,6 +1422,16 @@ struct TriangleLanes {
 #[derive(Clone, Copy, Debug)]
 enum TriangleLanes {}
 
+#[cfg(not(target_arch = "x86_64"))]
+impl TriangleLanes {
+    /// No lanes (the `x86_64` version's counterpart).
+    #[allow(unsafe_code, reason = "the same signature as the x86_64 version")]
+    #[inline(always)]
+    unsafe fn of<const AVX2: bool>(_: [DVec3; 3]) -> Option<Self> {
+        None
+    }
+}
+
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code, reason = "AVX2 instructions, inlined into the face path compiled for AVX2")]
 impl TriangleLanes {
@@ -1500,6 +1514,29 @@ impl TriangleLanes {
         }
     }
 
+    /// With `AVX2`, the lanes of a triangle placed already (from the
+    /// [`VertexCache`]), for [`TriangleLanes::project`]; `None` without.
+    ///
+    /// # Safety
+    /// With `AVX2`, the processor must have AVX2 (inlined always, so compiled with
+    /// the caller's features: for the GP's face path compiled for AVX2).
+    #[inline(always)]
+    unsafe fn of<const AVX2: bool>(p: [DVec3; 3]) -> Option<Self> {
+        use std::arch::x86_64::*;
+        if !AVX2 {
+            return None;
+        }
+        let [a, b, c] = p;
+        // SAFETY: the caller vouches for AVX2.
+        unsafe {
+            Some(Self {
+                x: _mm256_setr_pd(a.x, b.x, c.x, a.x),
+                y: _mm256_setr_pd(a.y, b.y, c.y, a.y),
+                z: _mm256_setr_pd(a.z, b.z, c.z, a.z),
+            })
+        }
+    }
+
     /// The triangle's screen points ([`View::project`] of each: `c + (f X) / Z`),
     /// in lanes, as the set-up's outline.
     ///
@@ -1527,7 +1564,12 @@ fn eye_plane(vs: &[EyeVertex]) -> Plane {
     for i in 1..vs.len() - 1 {
         n += (vs[i].position - p0).cross(vs[i + 1].position - p0);
     }
-    let normal = n.normalize_or_zero();
+    // `n.normalize_or_zero()`, its test `rcp.is_finite() && rcp > 0.0` as two
+    // float comparisons, `0 < rcp <= f64::MAX` (NaN fails both): glam's (and
+    // `rcp < INFINITY`, which the compiler turns into the same) tests the bits,
+    // ~12 instructions more.
+    let rcp = n.length_recip();
+    let normal = if rcp > 0.0 && rcp <= f64::MAX { n * rcp } else { DVec3::ZERO };
     Plane { normal, d: normal.dot(p0) }
 }
 
