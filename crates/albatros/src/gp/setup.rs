@@ -22,7 +22,9 @@
 //! GP's copy compiled for AVX2 (`Setup::add_face_with` with `AVX2`) the
 //! triangle's points are snapped, and its edge codes made, in AVX2 lanes
 //! (`snap_triangle_points_avx2`, [`EdgeCode::push_triangle_avx2`]; the same
-//! bits).
+//! bits); that copy hands a triangle's outline over already in lanes
+//! (`Outline::TriangleLanes`, as it projected the points), snapped there with
+//! no points in memory between (`snap_triangle_lanes_avx2`).
 
 use glam::{DMat3, DMat4, DVec2, DVec3};
 
