@@ -1851,8 +1851,12 @@ mod tests {
                 };
                 // SAFETY: a register of four `f64` is their array.
                 #[allow(unsafe_code, reason = "reading the lanes back")]
-                let (xs, ys) =
-                    unsafe { (std::mem::transmute::<_, [f64; 4]>(xs), std::mem::transmute::<_, [f64; 4]>(ys)) };
+                let (xs, ys) = unsafe {
+                    (
+                        std::mem::transmute::<std::arch::x86_64::__m256d, [f64; 4]>(xs),
+                        std::mem::transmute::<std::arch::x86_64::__m256d, [f64; 4]>(ys),
+                    )
+                };
                 for k in 0..4 {
                     let p = view.project(want[k % 3].0);
                     assert!(same(xs[k], p.x) && same(ys[k], p.y), "{to_eye:?} {vs:?}: screen point {k}");

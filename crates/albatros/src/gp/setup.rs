@@ -462,7 +462,12 @@ unsafe fn triangle_lanes<const AVX2: bool>(
         return unsafe { snap_triangle_lanes_avx2(xs, ys) };
     }
     // SAFETY: a register of four `f64` is their array, bit for bit.
-    let (x, y) = unsafe { (std::mem::transmute::<_, [f64; 4]>(xs), std::mem::transmute::<_, [f64; 4]>(ys)) };
+    let (x, y) = unsafe {
+        (
+            std::mem::transmute::<std::arch::x86_64::__m256d, [f64; 4]>(xs),
+            std::mem::transmute::<std::arch::x86_64::__m256d, [f64; 4]>(ys),
+        )
+    };
     let p = [DVec2::new(x[0], y[0]), DVec2::new(x[1], y[1]), DVec2::new(x[2], y[2])];
     snap_triangle_points([&p[0], &p[1], &p[2]])
 }
