@@ -29,7 +29,12 @@
 //! edge codes made with the three points or edges in the lanes of AVX2 registers
 //! (`setup::snap_triangle_points_avx2`, [`EdgeCode::push_triangle_avx2`], the
 //! edge codes' six 64-bit divisions as two float divisions with an exact
-//! correction): about 1240 to 1020 instructions a triangle.
+//! correction): about 1240 to 1020 instructions a triangle. Its triangles are
+//! also placed, outcoded and projected with the three vertices in the lanes of
+//! AVX2 registers (`TriangleLanes`, the projection handed to the snap in lanes,
+//! `setup::Outline::TriangleLanes`; a cached triangle, terrain's, projected in
+//! them), and a triangle's lighting choices made once for its three vertices:
+//! `many`'s GP about 980 to 870 instructions a triangle (session 14).
 //!
 //! Eye coordinates: X right, Y down, Z forward (depth); screen `x = W/2 + f X/Z`,
 //! `y = H/2 + f Y/Z` with `f = (W/2) / tan(fov/2)`. The GP computes in `f64` (the
@@ -55,7 +60,7 @@ use crate::frame::{FrameList, PrimitiveKind};
 #[cfg(doc)]
 use crate::vp::edge::EdgeCode;
 use clip::Window;
-use setup::{EyeVertex, Setup, Source};
+use setup::{EyeVertex, Outline, Setup, Source};
 
 /// The near (screen) plane's depth in metres.
 pub const NEAR: f64 = 0.1;
@@ -1109,18 +1114,33 @@ impl FrameBuilder<'_> {
             // in registers, and when it lies inside the window (class 1) set up
             // from them with no scratch list: the operations of the general path
             // below, in the same order, without its loops and pushes.
-            let ((a, ca), (b, cb), (c, cc)) = match ids {
+            // In the copy compiled for AVX2 the three vertices are projected in
+            // AVX2 lanes ([`TriangleLanes`]); with no cache (`many`'s tree) also
+            // placed in them.
+            let ([a, b, c], lanes) = match ids {
                 Some(&[i, j, k]) => {
                     let places = &mut scratch.places;
-                    (
-                        light.cached_vertex(places, i, a),
-                        light.cached_vertex(places, j, b),
-                        light.cached_vertex(places, k, c),
-                    )
+                    let ((pa, ca), (pb, cb), (pc, cc)) = (
+                        light.cached_place(places, i, a),
+                        light.cached_place(places, j, b),
+                        light.cached_place(places, k, c),
+                    );
+                    (and, or) = (ca & cb & cc, ca | cb | cc);
+                    // SAFETY: with `AVX2` this runs only in `face_avx2` (through
+                    // `face_body::<true>`), after detection.
+                    #[allow(unsafe_code, reason = "the AVX2 lanes in the face path compiled for AVX2")]
+                    let lanes = unsafe { TriangleLanes::of::<AVX2>([pa, pb, pc]) };
+                    (light.lit_triangle([a, b, c], [pa, pb, pc]), lanes)
                 }
-                _ => (light.vertex(a), light.vertex(b), light.vertex(c)),
+                _ => {
+                    // SAFETY: with `AVX2` this runs only in `face_avx2` (through
+                    // `face_body::<true>`), after detection.
+                    #[allow(unsafe_code, reason = "the AVX2 placing in the face path compiled for AVX2")]
+                    let (eye, lanes, all, any) = unsafe { light.triangle::<AVX2>([a, b, c]) };
+                    (and, or) = (all, any);
+                    (eye, lanes)
+                }
             };
-            (and, or) = (ca & cb & cc, ca | cb | cc);
             if and != 0 {
                 counters.outside += 1;
                 return;
@@ -1129,7 +1149,19 @@ impl FrameBuilder<'_> {
                 counters.face_class[0] += 1;
                 let eye = [a, b, c];
                 let plane_eye = eye_plane(&eye);
-                let screen = eye.map(|v| view.project(v.position));
+                let screen;
+                let outline = match lanes {
+                    #[cfg(target_arch = "x86_64")]
+                    // SAFETY: lanes are made only with `AVX2`, in `face_avx2`.
+                    #[allow(unsafe_code, reason = "the AVX2 projection in the face path compiled for AVX2")]
+                    Some(lanes) => unsafe { lanes.project(view) },
+                    #[cfg(not(target_arch = "x86_64"))]
+                    Some(lanes) => match lanes {},
+                    None => {
+                        screen = eye.map(|v| view.project(v.position));
+                        Outline::Points(&screen)
+                    }
+                };
                 let model_to_eye = &self.f.model_to_eye[face.instance as usize];
                 Self::set_up_face::<AVX2>(
                     &mut self.setup,
@@ -1140,7 +1172,7 @@ impl FrameBuilder<'_> {
                     model_to_eye,
                     &plane_eye,
                     &eye,
-                    &screen,
+                    outline,
                 );
                 return;
             }
@@ -1209,7 +1241,7 @@ impl FrameBuilder<'_> {
             model_to_eye,
             &plane_eye,
             &scratch.eye,
-            outline,
+            Outline::Points(outline),
         );
     }
 
@@ -1227,7 +1259,7 @@ impl FrameBuilder<'_> {
         model_to_eye: &DMat4,
         plane_eye: &Plane,
         eye: &[EyeVertex],
-        outline: &[DVec2],
+        outline: Outline<'_>,
     ) {
         let source = Source { kind: PrimitiveKind::Face, material: face.material, ids: (face.instance, face.face) };
         // SAFETY: with `AVX2` this runs only in `face_avx2` (through `face_body::<true>`),
@@ -1291,19 +1323,241 @@ impl Lighting<'_> {
         (self.lit(v, p), code)
     }
 
+    /// [`Lighting::place`] of the vertex numbered `id` (`v`), from `places` when
+    /// there.
+    #[inline(always)]
+    fn cached_place(&self, places: &mut VertexCache, id: u32, v: &BspVertex) -> (DVec3, u8) {
+        places.get(id, || self.place(v))
+    }
+
+    /// A triangle's three vertices in eye space and lit ([`Lighting::vertex`] of
+    /// each), and the AND and the OR of their outcodes; with `AVX2` placed in
+    /// AVX2 lanes ([`TriangleLanes::place`]), which are returned too for the
+    /// projection (`None` without).
+    ///
+    /// # Safety
+    /// With `AVX2`, the processor must have AVX2.
+    #[allow(unsafe_code, reason = "a function that runs AVX2 code when told the processor has it")]
+    #[inline(always)]
+    unsafe fn triangle<const AVX2: bool>(
+        &self,
+        vs: [&BspVertex; 3],
+    ) -> ([EyeVertex; 3], Option<TriangleLanes>, u8, u8) {
+        let [a, b, c] = vs;
+        #[cfg(target_arch = "x86_64")]
+        if AVX2 {
+            // SAFETY: with `AVX2` the caller vouches for the processor.
+            let (lanes, p, and, or) = unsafe { TriangleLanes::place(self.to_eye, self.view, vs) };
+            return (self.lit_triangle(vs, p), Some(lanes), and, or);
+        }
+        let ((pa, ca), (pb, cb), (pc, cc)) = (self.place(a), self.place(b), self.place(c));
+        (self.lit_triangle(vs, [pa, pb, pc]), None, ca & cb & cc, ca | cb | cc)
+    }
+
     /// One vertex in eye space at `p` (its [`Lighting::place`]), lit.
     #[inline(always)]
     fn lit(&self, v: &BspVertex, p: DVec3) -> EyeVertex {
-        let ambient = self.ambient;
         let cos_a = match self.cos_a {
             Some(c) => c,
-            None => ambient + (1.0 - ambient) * v.normal.as_dvec3().dot(self.sun).max(0.0),
+            None => self.own_cos_a(v),
         };
         // P5: P' = Pb + (P cos a - Pb) exp(-beta z). With no attenuation the
         // factor is exp(0) = 1 exactly (z is finite), and not computed.
-        let fade = if self.attenuation == 0.0 { 1.0 } else { (-f64::from(self.attenuation) * p.z).exp() };
-        let intensity = self.pb + (f64::from(v.intensity) * cos_a - self.pb) * fade;
-        EyeVertex { position: p, intensity }
+        let fade = if self.attenuation == 0.0 { 1.0 } else { self.fade(p) };
+        EyeVertex { position: p, intensity: self.intensity(v, cos_a, fade) }
+    }
+
+    /// [`Lighting::lit`] of a triangle's three vertices at `p`, the face's
+    /// choices (one `cos a` or each vertex's own, attenuation or none) made once
+    /// for the three rather than at each (the same operations per vertex).
+    #[inline(always)]
+    fn lit_triangle(&self, vs: [&BspVertex; 3], p: [DVec3; 3]) -> [EyeVertex; 3] {
+        let [a, b, c] = vs;
+        let cos_a = match self.cos_a {
+            Some(k) => [k; 3],
+            None => [self.own_cos_a(a), self.own_cos_a(b), self.own_cos_a(c)],
+        };
+        let fade = if self.attenuation == 0.0 { [1.0; 3] } else { [self.fade(p[0]), self.fade(p[1]), self.fade(p[2])] };
+        [
+            EyeVertex { position: p[0], intensity: self.intensity(a, cos_a[0], fade[0]) },
+            EyeVertex { position: p[1], intensity: self.intensity(b, cos_a[1], fade[1]) },
+            EyeVertex { position: p[2], intensity: self.intensity(c, cos_a[2], fade[2]) },
+        ]
+    }
+
+    /// `cos a` of a smooth-shaded vertex, by its own normal.
+    #[inline(always)]
+    fn own_cos_a(&self, v: &BspVertex) -> f64 {
+        self.ambient + (1.0 - self.ambient) * v.normal.as_dvec3().dot(self.sun).max(0.0)
+    }
+
+    /// The medium's attenuation `exp(-beta z)` at eye-space `p`.
+    #[inline(always)]
+    fn fade(&self, p: DVec3) -> f64 {
+        (-f64::from(self.attenuation) * p.z).exp()
+    }
+
+    /// P5's brightness of vertex `v` with `cos a` and the attenuation `fade`.
+    #[inline(always)]
+    fn intensity(&self, v: &BspVertex, cos_a: f64, fade: f64) -> f64 {
+        self.pb + (f64::from(v.intensity) * cos_a - self.pb) * fade
+    }
+}
+
+/// A triangle's three vertices in eye space in the lanes of AVX2 registers, one
+/// register a coordinate: lane `k` vertex `k`, lane 3 repeating vertex 0 (the
+/// layout of [`Outline::TriangleLanes`], so that the projection feeds the snap
+/// with no points in memory between).
+///
+/// Why: the scalar path placed, outcoded and projected each vertex on its own
+/// (about 80 instructions a vertex on `many`, a third of the face path); in lanes
+/// the outcodes' and the projection's arithmetic is done once for the three. The
+/// same `f64` operations in the same order on each lane (tested against
+/// [`Lighting::place`] and [`View::project`]), so the same bits.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy, Debug)]
+struct TriangleLanes {
+    x: std::arch::x86_64::__m256d,
+    y: std::arch::x86_64::__m256d,
+    z: std::arch::x86_64::__m256d,
+}
+
+/// No lanes without `x86_64` (never made: [`Lighting::triangle`] gives `None`).
+#[cfg(not(target_arch = "x86_64"))]
+#[derive(Clone, Copy, Debug)]
+enum TriangleLanes {}
+
+#[cfg(not(target_arch = "x86_64"))]
+impl TriangleLanes {
+    /// No lanes (the `x86_64` version's counterpart).
+    #[allow(unsafe_code, reason = "the same signature as the x86_64 version")]
+    #[inline(always)]
+    unsafe fn of<const AVX2: bool>(_: [DVec3; 3]) -> Option<Self> {
+        None
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[allow(unsafe_code, reason = "AVX2 instructions, inlined into the face path compiled for AVX2")]
+impl TriangleLanes {
+    /// The three vertices taken to the eye by `to_eye` (each as
+    /// `DMat4::transform_point3`: `((x_axis x + y_axis y) + z_axis z) + w_axis`,
+    /// the four lanes of a register the four rows), in lanes, their positions, and
+    /// the AND and the OR of their outcodes ([`View::outcode`], each border
+    /// compared in the three lanes at once).
+    ///
+    /// # Safety
+    /// The processor must have AVX2 (inlined always, so compiled with the caller's
+    /// features: for the GP's face path compiled for AVX2).
+    #[inline(always)]
+    unsafe fn place(to_eye: &DMat4, view: &View, vs: [&BspVertex; 3]) -> (Self, [DVec3; 3], u8, u8) {
+        use std::arch::x86_64::*;
+        let m: &[f64; 16] = to_eye.as_ref();
+        // SAFETY (this block): the matrix's columns are four `f64` each, in
+        // order; the loads are unaligned; the caller vouches for AVX2.
+        unsafe {
+            let c = m.as_ptr();
+            let (c0, c1, c2, c3) =
+                (_mm256_loadu_pd(c), _mm256_loadu_pd(c.add(4)), _mm256_loadu_pd(c.add(8)), _mm256_loadu_pd(c.add(12)));
+            // (Macros rather than closures: a closure is a function of its own,
+            // kept out of line without the caller's features.)
+            macro_rules! to_eye {
+                ($v:expr) => {{
+                    let p = &$v.position;
+                    let r = _mm256_mul_pd(c0, _mm256_broadcast_sd(&p.x));
+                    let r = _mm256_add_pd(_mm256_mul_pd(c1, _mm256_broadcast_sd(&p.y)), r);
+                    let r = _mm256_add_pd(_mm256_mul_pd(c2, _mm256_broadcast_sd(&p.z)), r);
+                    _mm256_add_pd(c3, r)
+                }};
+            }
+            let [a, b, c] = vs;
+            // Per vertex `[x, y, z, w]`; then per coordinate `[a, b, c, a]`.
+            let (ra, rb, rc) = (to_eye!(a), to_eye!(b), to_eye!(c));
+            let (ab_xz, ab_yw) = (_mm256_unpacklo_pd(ra, rb), _mm256_unpackhi_pd(ra, rb));
+            let (ca_xz, ca_yw) = (_mm256_unpacklo_pd(rc, ra), _mm256_unpackhi_pd(rc, ra));
+            let x = _mm256_permute2f128_pd::<0x20>(ab_xz, ca_xz);
+            let y = _mm256_permute2f128_pd::<0x20>(ab_yw, ca_yw);
+            let z = _mm256_permute2f128_pd::<0x31>(ab_xz, ca_xz);
+            // `View::outcode`'s borders, its bits as 64-bit lanes.
+            let f = _mm256_set1_pd(view.focal);
+            let hx = _mm256_add_pd(_mm256_mul_pd(f, x), _mm256_mul_pd(_mm256_set1_pd(view.center.x), z));
+            let hy = _mm256_add_pd(_mm256_mul_pd(f, y), _mm256_mul_pd(_mm256_set1_pd(view.center.y), z));
+            let wx = _mm256_mul_pd(_mm256_set1_pd(f64::from(view.screen.width)), z);
+            let wy = _mm256_mul_pd(_mm256_set1_pd(f64::from(view.screen.height)), z);
+            let zero = _mm256_setzero_pd();
+            macro_rules! bit {
+                ($mask:expr, $bit:expr) => {
+                    _mm256_and_si256(_mm256_castpd_si256($mask), _mm256_set1_epi64x($bit))
+                };
+            }
+            let codes = _mm256_or_si256(
+                _mm256_or_si256(
+                    _mm256_or_si256(
+                        bit!(_mm256_cmp_pd::<_CMP_LT_OQ>(hx, zero), 1),
+                        bit!(_mm256_cmp_pd::<_CMP_GT_OQ>(hx, wx), 2),
+                    ),
+                    _mm256_or_si256(
+                        bit!(_mm256_cmp_pd::<_CMP_LT_OQ>(hy, zero), 4),
+                        bit!(_mm256_cmp_pd::<_CMP_GT_OQ>(hy, wy), 8),
+                    ),
+                ),
+                bit!(_mm256_cmp_pd::<_CMP_LT_OQ>(z, _mm256_set1_pd(NEAR)), 16),
+            );
+            // Across the lanes (lane 3 is vertex 0 again: no effect on either).
+            let (low, high) = (_mm256_castsi256_si128(codes), _mm256_extracti128_si256::<1>(codes));
+            let (and, or) = (_mm_and_si128(low, high), _mm_or_si128(low, high));
+            let and = _mm_and_si128(and, _mm_unpackhi_epi64(and, and));
+            let or = _mm_or_si128(or, _mm_unpackhi_epi64(or, or));
+            let mut p = [[0f64; 4]; 3];
+            _mm256_storeu_pd(p[0].as_mut_ptr(), ra);
+            _mm256_storeu_pd(p[1].as_mut_ptr(), rb);
+            _mm256_storeu_pd(p[2].as_mut_ptr(), rc);
+            let [pa, pb, pc] = p;
+            let positions =
+                [DVec3::new(pa[0], pa[1], pa[2]), DVec3::new(pb[0], pb[1], pb[2]), DVec3::new(pc[0], pc[1], pc[2])];
+            (Self { x, y, z }, positions, _mm_cvtsi128_si64(and) as u8, _mm_cvtsi128_si64(or) as u8)
+        }
+    }
+
+    /// With `AVX2`, the lanes of a triangle placed already (from the
+    /// [`VertexCache`]), for [`TriangleLanes::project`]; `None` without.
+    ///
+    /// # Safety
+    /// With `AVX2`, the processor must have AVX2 (inlined always, so compiled with
+    /// the caller's features: for the GP's face path compiled for AVX2).
+    #[inline(always)]
+    unsafe fn of<const AVX2: bool>(p: [DVec3; 3]) -> Option<Self> {
+        use std::arch::x86_64::*;
+        if !AVX2 {
+            return None;
+        }
+        let [a, b, c] = p;
+        // SAFETY: the caller vouches for AVX2.
+        unsafe {
+            Some(Self {
+                x: _mm256_setr_pd(a.x, b.x, c.x, a.x),
+                y: _mm256_setr_pd(a.y, b.y, c.y, a.y),
+                z: _mm256_setr_pd(a.z, b.z, c.z, a.z),
+            })
+        }
+    }
+
+    /// The triangle's screen points ([`View::project`] of each: `c + (f X) / Z`),
+    /// in lanes, as the set-up's outline.
+    ///
+    /// # Safety
+    /// The processor must have AVX2 (inlined always, so compiled with the caller's
+    /// features: for the GP's face path compiled for AVX2).
+    #[inline(always)]
+    unsafe fn project(&self, view: &View) -> Outline<'static> {
+        use std::arch::x86_64::*;
+        // SAFETY: the caller vouches for AVX2.
+        unsafe {
+            let f = _mm256_set1_pd(view.focal);
+            let x = _mm256_add_pd(_mm256_set1_pd(view.center.x), _mm256_div_pd(_mm256_mul_pd(f, self.x), self.z));
+            let y = _mm256_add_pd(_mm256_set1_pd(view.center.y), _mm256_div_pd(_mm256_mul_pd(f, self.y), self.z));
+            Outline::TriangleLanes(x, y)
+        }
     }
 }
 
@@ -1315,7 +1569,12 @@ fn eye_plane(vs: &[EyeVertex]) -> Plane {
     for i in 1..vs.len() - 1 {
         n += (vs[i].position - p0).cross(vs[i + 1].position - p0);
     }
-    let normal = n.normalize_or_zero();
+    // `n.normalize_or_zero()`, its test `rcp.is_finite() && rcp > 0.0` as two
+    // float comparisons, `0 < rcp <= f64::MAX` (NaN fails both): glam's (and
+    // `rcp < INFINITY`, which the compiler turns into the same) tests the bits,
+    // ~12 instructions more.
+    let rcp = n.length_recip();
+    let normal = if rcp > 0.0 && rcp <= f64::MAX { n * rcp } else { DVec3::ZERO };
     Plane { normal, d: normal.dot(p0) }
 }
 
@@ -1482,5 +1741,129 @@ mod tests {
         assert!(multiple_stretches, "never more than one stretch: the test tests nothing");
         assert!(numbered, "no tree numbers its vertices: the cache is not tested");
         assert!(seen.iter().all(|&k| k > 20), "every kind of face tested: {seen:?}");
+    }
+
+    /// [`TriangleLanes::place`] and [`TriangleLanes::project`] are
+    /// [`Lighting::place`] and [`View::project`] of each vertex, bit for bit
+    /// (NaN for NaN): random eyes, screens and model matrices, vertices in front
+    /// of the eye, behind it, across every border and on the near plane, tiny and
+    /// huge coordinates, infinities and NaN.
+    #[test]
+    fn triangle_lanes_are_the_plain_definitions() {
+        #[cfg(target_arch = "x86_64")]
+        if has_avx2() {
+            /// A small xorshift generator (the test needs no better).
+            struct Rng(u64);
+            impl Rng {
+                fn next(&mut self) -> u64 {
+                    self.0 ^= self.0 << 13;
+                    self.0 ^= self.0 >> 7;
+                    self.0 ^= self.0 << 17;
+                    self.0
+                }
+                fn unit(&mut self) -> f64 {
+                    (self.next() >> 11) as f64 / (1u64 << 53) as f64
+                }
+            }
+            let mut rng = Rng(0x51A7_E5C0_DE00_0001);
+            let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+            let special = [0.0, -0.0, NEAR, 1e-300, -1e300, 1e300, f64::INFINITY, f64::NEG_INFINITY, f64::NAN];
+            let (mut outcomes, mut codes) = ([0usize; 3], 0u8);
+            for case in 0..200_000 {
+                let eye = Eye {
+                    position: glam::Vec3::new(
+                        rng.unit() as f32 * 200.0 - 100.0,
+                        rng.unit() as f32 * 200.0 - 100.0,
+                        0.0,
+                    ),
+                    heading: rng.unit() as f32 * 360.0,
+                    pitch: rng.unit() as f32 * 120.0 - 60.0,
+                    roll: rng.unit() as f32 * 60.0 - 30.0,
+                    fov: 20.0 + rng.unit() as f32 * 80.0,
+                };
+                let screen = Screen { width: 64 + (rng.next() % 2000) as u32, height: 64 + (rng.next() % 1200) as u32 };
+                let view = View::new(&eye, screen);
+                let scale = [1e-3, 1.0, 10.0, 1e3][case % 4];
+                let model = DMat4::from_scale_rotation_translation(
+                    DVec3::splat(0.5 + rng.unit() * scale),
+                    glam::DQuat::from_euler(glam::EulerRot::XYZ, rng.unit() * 7.0, rng.unit() * 7.0, rng.unit() * 7.0),
+                    DVec3::new(rng.unit() - 0.5, rng.unit() - 0.5, rng.unit() - 0.5) * 100.0,
+                );
+                let to_eye = if case % 3 == 0 { view.world_to_eye } else { view.world_to_eye * model };
+                let mut coordinate = |k: usize| match (case + k) % 7 {
+                    0 => special[(rng.next() % special.len() as u64) as usize],
+                    1 => (rng.unit() - 0.5) * 1e-6,
+                    _ => (rng.unit() - 0.5) * 2.0 * scale * 100.0,
+                };
+                let mut vs: Vec<BspVertex> = (0..3)
+                    .map(|k| BspVertex {
+                        position: DVec3::new(coordinate(3 * k), coordinate(3 * k + 1), coordinate(3 * k + 2)),
+                        normal: glam::Vec3::Z,
+                        intensity: 1.0,
+                    })
+                    .collect();
+                if case % 4 == 1 {
+                    // In the view volume, or nearly: eye-space points taken back.
+                    let to_model = to_eye.inverse();
+                    for v in &mut vs {
+                        let z = NEAR + rng.unit() * 100.0;
+                        let (x, y) = (rng.unit() * 1.02 - 0.01, rng.unit() * 1.02 - 0.01);
+                        let (w, h) = (f64::from(screen.width), f64::from(screen.height));
+                        let p = DVec3::new(
+                            (x * w - view.center.x) * z / view.focal,
+                            (y * h - view.center.y) * z / view.focal,
+                            z,
+                        );
+                        v.position = to_model.transform_point3(p);
+                    }
+                }
+                let light = Lighting {
+                    to_eye: &to_eye,
+                    view: &view,
+                    cos_a: Some(1.0),
+                    ambient: 0.2,
+                    sun: DVec3::Z,
+                    pb: 0.0,
+                    attenuation: 0.0,
+                };
+                let want = [light.place(&vs[0]), light.place(&vs[1]), light.place(&vs[2])];
+                // SAFETY: AVX2 was detected above.
+                #[allow(unsafe_code, reason = "the AVX2 path under test, after detection")]
+                let (lanes, got, and, or) = unsafe { TriangleLanes::place(&to_eye, &view, [&vs[0], &vs[1], &vs[2]]) };
+                for k in 0..3 {
+                    let (w, g) = (want[k].0.to_array(), got[k].to_array());
+                    assert!((0..3).all(|i| same(w[i], g[i])), "{to_eye:?} {vs:?}: vertex {k}");
+                }
+                assert_eq!(and, want[0].1 & want[1].1 & want[2].1, "{to_eye:?} {vs:?}");
+                assert_eq!(or, want[0].1 | want[1].1 | want[2].1, "{to_eye:?} {vs:?}");
+                codes |= or;
+                outcomes[if and != 0 {
+                    0
+                } else if or == 0 {
+                    1
+                } else {
+                    2
+                }] += 1;
+                // SAFETY: AVX2 was detected above.
+                #[allow(unsafe_code, reason = "the AVX2 path under test, after detection")]
+                let Outline::TriangleLanes(xs, ys) = (unsafe { lanes.project(&view) }) else {
+                    unreachable!("the lanes project into lanes")
+                };
+                // SAFETY: a register of four `f64` is their array.
+                #[allow(unsafe_code, reason = "reading the lanes back")]
+                let (xs, ys) = unsafe {
+                    (
+                        std::mem::transmute::<std::arch::x86_64::__m256d, [f64; 4]>(xs),
+                        std::mem::transmute::<std::arch::x86_64::__m256d, [f64; 4]>(ys),
+                    )
+                };
+                for k in 0..4 {
+                    let p = view.project(want[k % 3].0);
+                    assert!(same(xs[k], p.x) && same(ys[k], p.y), "{to_eye:?} {vs:?}: screen point {k}");
+                }
+            }
+            assert_eq!(codes, 0x1F, "every border crossed");
+            assert!(outcomes.iter().all(|&k| k > 10_000), "outside, across and inside: {outcomes:?}");
+        }
     }
 }

@@ -22,7 +22,9 @@
 //! GP's copy compiled for AVX2 (`Setup::add_face_with` with `AVX2`) the
 //! triangle's points are snapped, and its edge codes made, in AVX2 lanes
 //! (`snap_triangle_points_avx2`, [`EdgeCode::push_triangle_avx2`]; the same
-//! bits).
+//! bits); that copy hands a triangle's outline over already in lanes
+//! (`Outline::TriangleLanes`, as it projected the points), snapped there with
+//! no points in memory between (`snap_triangle_lanes_avx2`).
 
 use glam::{DMat3, DMat4, DVec2, DVec3};
 
@@ -51,6 +53,19 @@ pub struct Source {
     pub material: u32,
     /// Instance and face (or light index and `u32::MAX`).
     pub ids: (u32, u32),
+}
+
+/// A polygon's clipped screen outline as [`Setup::add_face_with`] takes it.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Outline<'a> {
+    /// The points in order.
+    Points(&'a [DVec2]),
+    /// A triangle's points in the lanes of AVX2 registers, `x` then `y`: lane `k`
+    /// point `k`, lane 3 repeating point 0 (the lanes [`snap_triangle_points_avx2`]
+    /// snaps). The GP's face path compiled for AVX2 projects a triangle into them
+    /// (`gp::TriangleLanes::project`), with no points in memory between.
+    #[cfg(target_arch = "x86_64")]
+    TriangleLanes(std::arch::x86_64::__m256d, std::arch::x86_64::__m256d),
 }
 
 /// The set-up unit of the GP for one frame.
@@ -194,7 +209,16 @@ impl Setup {
         // SAFETY: `AVX2 = false` needs no processor feature.
         #[allow(unsafe_code, reason = "the plain instance of a function unsafe only with AVX2")]
         unsafe {
-            self.add_face_with::<false>(source, material, color, plane_eye, eye_poly, outline, model_to_eye, out)
+            self.add_face_with::<false>(
+                source,
+                material,
+                color,
+                plane_eye,
+                eye_poly,
+                Outline::Points(outline),
+                model_to_eye,
+                out,
+            )
         }
     }
 
@@ -214,7 +238,7 @@ impl Setup {
         color: Rgb,
         plane_eye: &Plane,
         eye_poly: &[EyeVertex],
-        outline: &[DVec2],
+        outline: Outline<'_>,
         model_to_eye: &DMat4,
         out: &mut FrameList,
     ) -> bool {
@@ -222,11 +246,16 @@ impl Setup {
         // them and its codes made inline ([`EdgeCode::push_triangle`]); other
         // outlines go through `self.snapped`.
         let (inside_positive, triangle) = match outline {
-            [a, b, c] => match triangle_points::<AVX2>([a, b, c]) {
+            Outline::Points([a, b, c]) => match triangle_points::<AVX2>([a, b, c]) {
                 Some((inside, points)) => (inside, Some(points)),
                 None => return false,
             },
-            _ => match snap_outline(outline, &mut self.snapped) {
+            #[cfg(target_arch = "x86_64")]
+            Outline::TriangleLanes(xs, ys) => match triangle_lanes::<AVX2>(xs, ys) {
+                Some((inside, points)) => (inside, Some(points)),
+                None => return false,
+            },
+            Outline::Points(outline) => match snap_outline(outline, &mut self.snapped) {
                 Some(inside) => (inside, None),
                 None => return false,
             },
@@ -414,6 +443,35 @@ unsafe fn triangle_points<const AVX2: bool>(outline: [&DVec2; 3]) -> Option<(boo
     snap_triangle_points(outline)
 }
 
+/// [`snap_triangle_points`] of a triangle given in lanes ([`Outline::TriangleLanes`]):
+/// with `AVX2` by [`snap_triangle_lanes_avx2`], else (lanes made by AVX2 code
+/// reaching a copy compiled without it, which the GP never does) by the points
+/// read back from the lanes; the same result.
+///
+/// # Safety
+/// With `AVX2`, the processor must have AVX2.
+#[cfg(target_arch = "x86_64")]
+#[allow(unsafe_code, reason = "a function that runs AVX2 code when told the processor has it")]
+#[inline(always)]
+unsafe fn triangle_lanes<const AVX2: bool>(
+    xs: std::arch::x86_64::__m256d,
+    ys: std::arch::x86_64::__m256d,
+) -> Option<(bool, [(ScreenFx, ScreenFx); 3])> {
+    if AVX2 {
+        // SAFETY: with `AVX2` the caller vouches for the processor.
+        return unsafe { snap_triangle_lanes_avx2(xs, ys) };
+    }
+    // SAFETY: a register of four `f64` is their array, bit for bit.
+    let (x, y) = unsafe {
+        (
+            std::mem::transmute::<std::arch::x86_64::__m256d, [f64; 4]>(xs),
+            std::mem::transmute::<std::arch::x86_64::__m256d, [f64; 4]>(ys),
+        )
+    };
+    let p = [DVec2::new(x[0], y[0]), DVec2::new(x[1], y[1]), DVec2::new(x[2], y[2])];
+    snap_triangle_points([&p[0], &p[1], &p[2]])
+}
+
 /// [`snap_triangle_points`] in AVX2 registers, the three points in lanes: the
 /// same result for every input (tested, NaN, infinities, ties and huge values
 /// among them), where the scalar code converted each coordinate on its own
@@ -445,6 +503,24 @@ unsafe fn snap_triangle_points_avx2(outline: [&DVec2; 3]) -> Option<(bool, [(Scr
     let [a, b, c] = outline;
     // Lane k: point k; lane 3 repeats point 0 (so that each lane's next point,
     // one lane on, is the triangle's next point for lanes 0 to 2).
+    // SAFETY: the caller vouches for AVX2.
+    unsafe { snap_triangle_lanes_avx2(_mm256_setr_pd(a.x, b.x, c.x, a.x), _mm256_setr_pd(a.y, b.y, c.y, a.y)) }
+}
+
+/// [`snap_triangle_points_avx2`] of the points already in lanes (`xs`, `ys`:
+/// lane `k` point `k`, lane 3 repeating point 0; [`Outline::TriangleLanes`]).
+///
+/// # Safety
+/// The processor must have AVX2 (inlined always, so compiled with the caller's
+/// features: for the GP's face path compiled for AVX2).
+#[cfg(target_arch = "x86_64")]
+#[allow(unsafe_code, reason = "AVX2 instructions, inlined into a caller compiled for AVX2")]
+#[inline(always)]
+unsafe fn snap_triangle_lanes_avx2(
+    xs: std::arch::x86_64::__m256d,
+    ys: std::arch::x86_64::__m256d,
+) -> Option<(bool, [(ScreenFx, ScreenFx); 3])> {
+    use std::arch::x86_64::*;
     // (Macros rather than closures: a closure is a function of its own, kept out
     // of line without the caller's features.)
     macro_rules! snap {
@@ -465,8 +541,8 @@ unsafe fn snap_triangle_points_avx2(outline: [&DVec2; 3]) -> Option<(bool, [(Scr
             _mm256_cvtepi32_epi64($v)
         };
     }
-    let xs = snap!(_mm256_setr_pd(a.x, b.x, c.x, a.x));
-    let ys = snap!(_mm256_setr_pd(a.y, b.y, c.y, a.y));
+    let xs = snap!(xs);
+    let ys = snap!(ys);
     let (xn, yn) = (_mm_shuffle_epi32::<0b01_00_10_01>(xs), _mm_shuffle_epi32::<0b01_00_10_01>(ys));
     let same = _mm_and_si128(_mm_cmpeq_epi32(xs, xn), _mm_cmpeq_epi32(ys, yn));
     if _mm_movemask_ps(_mm_castsi128_ps(same)) & 0b111 != 0 {
