@@ -29,9 +29,12 @@
 //! look-up are one 4-byte read ([`super::texture`]'s pair layout), a gather, which
 //! the AVX2 copy starts at the level the footprint's exponent gives and checks
 //! against the ROM's level after (the look-up's chain, the cell's longest, no
-//! longer waits for the `log2` ROM); the TAC's ROM entries `k` and `k + 1` one
-//! 8-byte read, by gathers in the AVX-512 copy and by scalar loads in the AVX2
-//! copy (Zen 3's gathers cost more). Rust neither
+//! longer waits for the `log2` ROM, which is not read at all where every lane's
+//! level is settled by the clamps: a magnified map); the TAC's ROM entries `k`
+//! and `k + 1` one 8-byte read, by gathers in the AVX-512 copy and by scalar
+//! loads in the AVX2 copy (Zen 3's gathers cost more), the fog ROM's from a
+//! window of eight entries around lane 0's when every lane's lie in it
+//! ([`super::tac`]). Rust neither
 //! fuses nor reorders float operations, and each copy does the same operations in
 //! the same order, so the bits are the same; the tests compare every copy the
 //! processor can run with the plain per-pixel definition.

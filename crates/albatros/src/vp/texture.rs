@@ -440,13 +440,22 @@ impl MapAvx2<'_> {
     fn level_avx2(&self, u: __m256, v: __m256, footprint: __m256) -> Level {
         // Level of detail ([`TextureMap::lod`], [`lod_of_texels`]).
         let texels = _mm256_mul_ps(footprint, self.side);
-        let log = self.rom.log2_avx2(texels);
         let top = self.top;
         // `log.min(top)` (never NaN: the ROM's `log2` is finite) where below
         // `beyond`, else `top`; all that where above one texel, else 0 (NaN too:
         // ordered compares are false for it).
-        let above = _mm256_blendv_ps(top, _mm256_min_ps(log, top), _mm256_cmp_ps::<_CMP_LT_OQ>(texels, self.beyond));
-        let lod = _mm256_and_ps(above, _mm256_cmp_ps::<_CMP_GT_OQ>(texels, _mm256_set1_ps(1.0)));
+        let below = _mm256_cmp_ps::<_CMP_LT_OQ>(texels, self.beyond);
+        let over_one = _mm256_cmp_ps::<_CMP_GT_OQ>(texels, _mm256_set1_ps(1.0));
+        let lod = if _mm256_movemask_ps(_mm256_and_ps(below, over_one)) == 0 {
+            // No lane between the clamps (a magnified map: 65 % of default's
+            // cells with one half visible): each lane's level is `top` or 0 as
+            // below, and the `log2` ROM is not read (colour + VB: default 109.9
+            // → 109.2 M, city 69.7 → 69.1 M).
+            _mm256_and_ps(top, over_one)
+        } else {
+            let log = self.rom.log2_avx2(texels);
+            _mm256_and_ps(_mm256_blendv_ps(top, _mm256_min_ps(log, top), below), over_one)
+        };
         let floor = _mm256_floor_ps(lod);
         let kr = _mm256_sub_ps(lod, floor);
         let k = small_int_avx2(floor);
