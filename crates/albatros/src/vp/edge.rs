@@ -50,6 +50,50 @@ const FAST_COORD_BITS: u32 = 26;
 /// (the bounds are worked out there).
 const FLOAT_COORD_BITS: u32 = 21;
 
+/// The flags' word: the last 8 bytes of a code (see [`CODE_LAYOUT`]).
+const FLAGS_OFFSET: usize = 56;
+
+/// Whether a field at `offset` lies in a code's flags' word.
+const fn flag_byte(offset: usize) -> bool {
+    offset >= FLAGS_OFFSET && offset < FLAGS_OFFSET + 8
+}
+
+/// The position of a one-byte field at `offset` in the flags' word, in bits.
+const fn flag_bit(offset: usize) -> u32 {
+    (offset - FLAGS_OFFSET) as u32 * 8
+}
+
+/// Where [`EdgeCode::push_triangle_avx2`] may store a code as two 32-byte halves:
+/// `Some([tg, lr, exact32])`, the bit positions of those three one-byte fields in
+/// the last 8 bytes, when the compiler laid the code out as `origin, slope,
+/// exact.ends | exact.a, exact.b, exact.c, the flags` (64 bytes; what it does
+/// today); `None` for any other layout (then the fields are written one by one).
+const CODE_LAYOUT: Option<[u32; 3]> = {
+    use std::mem::{offset_of, size_of};
+    let exact = offset_of!(EdgeCode, exact);
+    if size_of::<EdgeCode>() == 64
+        && offset_of!(EdgeCode, origin) == 0
+        && offset_of!(EdgeCode, slope) == 8
+        && exact + offset_of!(ExactLine, ends) == 16
+        && offset_of!((i32, i32), 0) == 0
+        && offset_of!((i32, i32), 1) == 4
+        && exact + offset_of!(ExactLine, a) == 32
+        && exact + offset_of!(ExactLine, b) == 40
+        && exact + offset_of!(ExactLine, c) == 48
+        && flag_byte(offset_of!(EdgeCode, tg))
+        && flag_byte(offset_of!(EdgeCode, lr))
+        && flag_byte(offset_of!(EdgeCode, exact32))
+    {
+        Some([
+            flag_bit(offset_of!(EdgeCode, tg)),
+            flag_bit(offset_of!(EdgeCode, lr)),
+            flag_bit(offset_of!(EdgeCode, exact32)),
+        ])
+    } else {
+        None
+    }
+};
+
 /// A snapped screen coordinate: pixels in 24.8 fixed point.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
 pub struct ScreenFx(pub i32);
@@ -392,38 +436,89 @@ impl EdgeCode {
             q1,
         )));
         let slope = _mm256_sll_epi64(wide!(_mm_sub_epi32(q2, q1)), _mm_cvtsi32_si128((shift - root_bits) as i32));
-        // Out of the lanes: one store per register, the fields read back.
-        let mut lanes64 = [[0i64; 4]; 5];
-        for (slot, v) in lanes64.iter_mut().zip([origin, slope, wide!(ca), wide!(cb), cc]) {
-            // SAFETY: `slot` is 32 bytes, a register's size (an unaligned store).
-            #[allow(unsafe_code, reason = "a store of a register into an array of its size")]
-            unsafe {
-                _mm256_storeu_si256(slot.as_mut_ptr().cast(), v);
-            }
-        }
-        let mut lanes32 = [[0i32; 4]; 6];
-        for (slot, v) in lanes32.iter_mut().zip([e0x, e0y, e1x, e1y, vertical, lr]) {
-            // SAFETY: `slot` is 16 bytes, a register's size (an unaligned store).
-            #[allow(unsafe_code, reason = "a store of a register into an array of its size")]
-            unsafe {
-                _mm_storeu_si128(slot.as_mut_ptr().cast(), v);
-            }
-        }
-        let [origin, slope, ca, cb, cc] = lanes64;
-        let [e0x, e0y, e1x, e1y, vertical, lr] = lanes32;
-        // Written into the spare capacity and the length set once (`push` wrote the
-        // length back and checked the capacity for each code).
         out.reserve(3);
         let len = out.len();
-        for (k, slot) in out.spare_capacity_mut()[..3].iter_mut().enumerate() {
-            slot.write(Self {
-                tg: if vertical[k] != 0 { Tg::Vertical } else { Tg::Horizontal },
-                lr: lr[k] != 0,
-                origin: EdgeCoord(origin[k]),
-                slope: EdgeCoord(slope[k]),
-                exact: ExactLine { a: ca[k], b: cb[k], c: cc[k], ends: [(e0x[k], e0y[k]), (e1x[k], e1y[k])] },
-                exact32: true,
-            });
+        if CODE_LAYOUT.is_some() {
+            // Each code is two 32-byte halves ([`CODE_LAYOUT`]): the lanes' fields
+            // transposed in registers and stored whole (the stores of the fields one
+            // by one were 48 instructions a triangle, and their reads from the
+            // registers' copies on the stack about as many again).
+            let Some([tg_bit, lr_bit, exact32_bit]) = CODE_LAYOUT else { unreachable!() };
+            // An edge's two ends as one 64-bit lane: x in the low half, y above.
+            macro_rules! pairs {
+                ($x:expr, $y:expr) => {{
+                    let (x, y) = ($x, $y);
+                    _mm256_set_m128i(_mm_unpackhi_epi32(x, y), _mm_unpacklo_epi32(x, y))
+                }};
+            }
+            let (ends0, ends1) = (pairs!(e0x, e0y), pairs!(e1x, e1y));
+            // TG, LR (all-ones lanes masked to a 1 in their byte) and `exact32`.
+            let flags = _mm256_or_si256(
+                _mm256_or_si256(
+                    _mm256_and_si256(wide!(vertical), _mm256_set1_epi64x(1 << tg_bit)),
+                    _mm256_and_si256(wide!(lr), _mm256_set1_epi64x(1 << lr_bit)),
+                ),
+                _mm256_set1_epi64x(1 << exact32_bit),
+            );
+            // Rows `r0..r3` (a field each, lane k edge k) to the first three columns
+            // (edge k's four fields in order).
+            macro_rules! columns {
+                ($r0:expr, $r1:expr, $r2:expr, $r3:expr) => {{
+                    let (t0, t1) = (_mm256_unpacklo_epi64($r0, $r1), _mm256_unpackhi_epi64($r0, $r1));
+                    let (t2, t3) = (_mm256_unpacklo_epi64($r2, $r3), _mm256_unpackhi_epi64($r2, $r3));
+                    [
+                        _mm256_permute2x128_si256::<0x20>(t0, t2),
+                        _mm256_permute2x128_si256::<0x20>(t1, t3),
+                        _mm256_permute2x128_si256::<0x31>(t0, t2),
+                    ]
+                }};
+            }
+            let low = columns!(origin, slope, ends0, ends1);
+            let high = columns!(wide!(ca), wide!(cb), cc, flags);
+            let dst = out.spare_capacity_mut()[..3].as_mut_ptr().cast::<__m256i>();
+            for k in 0..3 {
+                // SAFETY: the three codes' 192 bytes after `len` were reserved; code
+                // `k` is the two 32-byte halves at `2k` and `2k + 1` (unaligned
+                // stores), every field written with a valid value (TG's and the
+                // flags' bytes 0 or 1, the padding zero).
+                #[allow(unsafe_code, reason = "stores of a code's two halves into reserved capacity")]
+                unsafe {
+                    _mm256_storeu_si256(dst.add(2 * k), low[k]);
+                    _mm256_storeu_si256(dst.add(2 * k + 1), high[k]);
+                }
+            }
+        } else {
+            // Out of the lanes: one store per register, the fields read back.
+            let mut lanes64 = [[0i64; 4]; 5];
+            for (slot, v) in lanes64.iter_mut().zip([origin, slope, wide!(ca), wide!(cb), cc]) {
+                // SAFETY: `slot` is 32 bytes, a register's size (an unaligned store).
+                #[allow(unsafe_code, reason = "a store of a register into an array of its size")]
+                unsafe {
+                    _mm256_storeu_si256(slot.as_mut_ptr().cast(), v);
+                }
+            }
+            let mut lanes32 = [[0i32; 4]; 6];
+            for (slot, v) in lanes32.iter_mut().zip([e0x, e0y, e1x, e1y, vertical, lr]) {
+                // SAFETY: `slot` is 16 bytes, a register's size (an unaligned store).
+                #[allow(unsafe_code, reason = "a store of a register into an array of its size")]
+                unsafe {
+                    _mm_storeu_si128(slot.as_mut_ptr().cast(), v);
+                }
+            }
+            let [origin, slope, ca, cb, cc] = lanes64;
+            let [e0x, e0y, e1x, e1y, vertical, lr] = lanes32;
+            // Written into the spare capacity and the length set once (`push` wrote the
+            // length back and checked the capacity for each code).
+            for (k, slot) in out.spare_capacity_mut()[..3].iter_mut().enumerate() {
+                slot.write(Self {
+                    tg: if vertical[k] != 0 { Tg::Vertical } else { Tg::Horizontal },
+                    lr: lr[k] != 0,
+                    origin: EdgeCoord(origin[k]),
+                    slope: EdgeCoord(slope[k]),
+                    exact: ExactLine { a: ca[k], b: cb[k], c: cc[k], ends: [(e0x[k], e0y[k]), (e1x[k], e1y[k])] },
+                    exact32: true,
+                });
+            }
         }
         // (Written in place rather than by `extend` of the three, which was not
         // inlined here: `many`'s GP 990 -> 1152 M instructions.)
@@ -772,6 +867,13 @@ mod tests {
     /// extreme coordinates of its bounds and their neighbours (where the
     /// numerators, quotients and products of its float divisions are largest), at
     /// the largest and smallest root sides.
+    /// The codes' layout is the one [`EdgeCode::push_triangle_avx2`] stores whole
+    /// (else its tests would check only the fields' one-by-one writes).
+    #[test]
+    fn code_layout_is_known() {
+        assert!(CODE_LAYOUT.is_some());
+    }
+
     #[test]
     fn push_triangle_avx2_at_its_bounds() {
         let m = 1i32 << FLOAT_COORD_BITS;
