@@ -39,18 +39,31 @@ fn a_pipelined_frame_is_the_frame_of_the_stages_one_step_late() {
             })
             .collect();
         assert!(want.windows(2).all(|w| w[0] != w[1]), "{name}: the flight's frames must differ");
-        for (p, q, threads) in [(1, 1, 1), (2, 1, 2), (2, 2, 2), (3, 1, 3)] {
-            let mut matrix = Matrix::new(screen.width, screen.height, VpConfig::default(), p, q, 16, threads).unwrap();
+        // P3's interleave, and strip matrices (their strips move from step to step).
+        let shapes =
+            [(1, 1, 1, false), (2, 1, 2, false), (2, 2, 2, false), (3, 1, 3, false), (2, 1, 2, true), (3, 1, 2, true)];
+        for (p, q, threads, striped) in shapes {
+            let mut matrix = match striped {
+                false => Matrix::new(screen.width, screen.height, VpConfig::default(), p, q, 16, threads).unwrap(),
+                true => Matrix::striped(screen.width, screen.height, VpConfig::default(), p, threads).unwrap(),
+            };
             matrix.set_textures(maps.clone());
             let mut pipeline = Pipeline::new(&db, screen, GpConfig { threads, ..GpConfig::default() }, matrix);
             let mut image = Image { width: 0, height: 0, pixels: Vec::new() };
             assert!(!pipeline.step(&eyes[0], &mut image), "the first step only sets a frame up");
             for k in 1..eyes.len() {
                 assert!(pipeline.step(&eyes[k], &mut image));
-                assert!(image == want[k - 1], "{name} {p}x{q} on {threads} threads: step {k} is not frame {}", k - 1);
+                assert!(
+                    image == want[k - 1],
+                    "{name} {p}x{q} (strips: {striped}) on {threads} threads: step {k} is not frame {}",
+                    k - 1
+                );
             }
             assert!(pipeline.finish(&mut image));
-            assert!(image == want[eyes.len() - 1], "{name} {p}x{q} on {threads} threads: the last frame");
+            assert!(
+                image == want[eyes.len() - 1],
+                "{name} {p}x{q} (strips: {striped}) on {threads} threads: the last frame"
+            );
             assert!(!pipeline.finish(&mut image), "nothing is left after the last frame");
         }
     }
