@@ -1752,19 +1752,7 @@ mod tests {
     fn triangle_lanes_are_the_plain_definitions() {
         #[cfg(target_arch = "x86_64")]
         if has_avx2() {
-            /// A small xorshift generator (the test needs no better).
-            struct Rng(u64);
-            impl Rng {
-                fn next(&mut self) -> u64 {
-                    self.0 ^= self.0 << 13;
-                    self.0 ^= self.0 >> 7;
-                    self.0 ^= self.0 << 17;
-                    self.0
-                }
-                fn unit(&mut self) -> f64 {
-                    (self.next() >> 11) as f64 / (1u64 << 53) as f64
-                }
-            }
+            use crate::gp::setup::tests::Rng;
             let mut rng = Rng(0x51A7_E5C0_DE00_0001);
             let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
             let special = [0.0, -0.0, NEAR, 1e-300, -1e300, 1e300, f64::INFINITY, f64::NEG_INFINITY, f64::NAN];

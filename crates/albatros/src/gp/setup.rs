@@ -705,7 +705,7 @@ fn cross(a: (ScreenFx, ScreenFx), b: (ScreenFx, ScreenFx), c: (ScreenFx, ScreenF
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// [`snap_outline`] as first written: the passes alone, with no convexity
@@ -715,15 +715,20 @@ mod tests {
         drop_turns(s, sign)
     }
 
-    /// A small xorshift generator (the tests need no better).
-    struct Rng(u64);
+    /// A small xorshift generator (the tests need no better; the GP's tests use it
+    /// too).
+    pub(crate) struct Rng(pub(crate) u64);
 
     impl Rng {
-        fn next(&mut self) -> u64 {
+        pub(crate) fn next(&mut self) -> u64 {
             self.0 ^= self.0 << 13;
             self.0 ^= self.0 >> 7;
             self.0 ^= self.0 << 17;
             self.0
+        }
+        /// A draw in `0..1`, 53 bits.
+        pub(crate) fn unit(&mut self) -> f64 {
+            (self.next() >> 11) as f64 / (1u64 << 53) as f64
         }
         fn range(&mut self, lo: f64, hi: f64) -> f64 {
             lo + (hi - lo) * (self.next() >> 11) as f64 / (1u64 << 53) as f64
