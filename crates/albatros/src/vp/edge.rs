@@ -863,10 +863,6 @@ mod tests {
         }
     }
 
-    /// [`EdgeCode::push_triangle_avx2`] on every triangle whose corners take the
-    /// extreme coordinates of its bounds and their neighbours (where the
-    /// numerators, quotients and products of its float divisions are largest), at
-    /// the largest and smallest root sides.
     /// The codes' layout is the one [`EdgeCode::push_triangle_avx2`] stores whole
     /// (else its tests would check only the fields' one-by-one writes).
     #[test]
@@ -874,6 +870,10 @@ mod tests {
         assert!(CODE_LAYOUT.is_some());
     }
 
+    /// [`EdgeCode::push_triangle_avx2`] on every triangle whose corners take the
+    /// extreme coordinates of its bounds and their neighbours (where the
+    /// numerators, quotients and products of its float divisions are largest), at
+    /// the largest and smallest root sides.
     #[test]
     fn push_triangle_avx2_at_its_bounds() {
         let m = 1i32 << FLOAT_COORD_BITS;

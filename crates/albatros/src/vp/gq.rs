@@ -813,7 +813,7 @@ impl CellProcessors {
     /// Greene's rule marks a parent only when its four children are marked; the cells
     /// off the screen, and those outside a matrix VP's share, are pre-masked on every
     /// level, [`Self::pre_mask_share`]; tested by `marks_are_closed_downward` and
-    /// `share_pre_masks_are_closed_downward`). So the cell's ancestor on the deepest
+    /// `share_pre_masks_are_exact_and_closed_downward`). So the cell's ancestor on the deepest
     /// level in use decides alone: one read where the walk up the levels took one per
     /// level for every polygon not hidden (most of `many`'s triangles are hidden at
     /// subpixel level, below the marks).

@@ -1549,7 +1549,10 @@ fn accumulate_log8_flat_sse41(codes: &mut [Word8], width: usize, vis: &Visible, 
     }
 }
 
-/// The pixels of a cell with a visible subpixel, bit `4 y + x`.
+/// The pixels of a cell with a visible subpixel, bit `4 y + x`:
+/// [`crate::model::stats::visible_pixels`] in the build's SSE lanes (the colour
+/// computers' copy, `cc::visible_avx2`, needs AVX2; this one runs in the baseline
+/// F1 of one-colour cells).
 #[cfg(all(target_arch = "x86_64", target_feature = "sse4.1"))]
 #[inline(always)]
 fn visible_pixels(vis: &Visible) -> u32 {
