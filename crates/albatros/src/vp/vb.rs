@@ -2909,7 +2909,8 @@ impl Log8Passes for Log8Avx2 {
     }
 }
 
-/// Words `8 half .. 8 half + 8` of a run, one register.
+/// Words `8 half .. 8 half + 8` of a run, one register, by `vlddqu` (as
+/// [`load_window`]: the build's tuning splits an unaligned `vmovdqu` in two).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
@@ -2918,7 +2919,7 @@ fn words_avx2(run: &[Word8; LOG8_RUN], half: usize) -> __m256i {
     // SAFETY: `part` is 32 bytes, which the load reads.
     #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
     unsafe {
-        _mm256_loadu_si256(part.as_ptr().cast())
+        _mm256_lddqu_si256(part.as_ptr().cast())
     }
 }
 
@@ -3111,12 +3112,13 @@ fn read_out_log8_pass2_avx2(
     const LANES: usize = 16;
     const REGISTERS: usize = 4 * LOG8_RUN / LANES;
     let lanes = run.as_flattened();
+    // (By `vlddqu`, one instruction: see [`words_avx2`].)
     let load = |at: usize| {
         let part: &[i16; LANES] = lanes[at..][..LANES].try_into().expect("16 lanes");
         // SAFETY: `part` is 32 bytes, which the load reads.
         #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
         unsafe {
-            _mm256_loadu_si256(part.as_ptr().cast())
+            _mm256_lddqu_si256(part.as_ptr().cast())
         }
     };
     // (A lane's index with its high byte's top bit set: `vpshufb` gives 0 there, so
@@ -3406,8 +3408,17 @@ fn read_out_log8_rows<'a>(
     let mut flat_runs = vec![false; w.div_ceil(LOG8_RUN)];
     // The last flat run's word and its half sum (flat areas repeat them).
     let mut flat_mean: (Word8, Line8) = (0, pairs.mean_words(0, 0));
-    // The last flat run's value and its output pixels.
-    let mut flat_out: (Line8, [u64; 3]) = (flat_mean.1, pattern(pixel(flat_mean.1)));
+    // The last flat run's value and its output bytes, a whole run's (copied as one
+    // block of 48 bytes: three 16-byte stores).
+    let run_bytes = |value: Line8| -> [u8; 3 * LOG8_RUN] {
+        let words = pattern(pixel(value));
+        let mut bytes = [0; 3 * LOG8_RUN];
+        for (o, p) in bytes.chunks_exact_mut(8).zip(words.iter().cycle()) {
+            o.copy_from_slice(&p.to_le_bytes());
+        }
+        bytes
+    };
+    let mut flat_out: (Line8, [u8; 3 * LOG8_RUN]) = (flat_mean.1, run_bytes(flat_mean.1));
     for (y, out_row) in rows.zip(out.chunks_exact_mut(3 * w)) {
         if !filter {
             let mut x0 = 0;
@@ -3446,11 +3457,9 @@ fn read_out_log8_rows<'a>(
                 // after it has the value or there is none.
                 let value = line[x0];
                 if flat_out.0 != value {
-                    flat_out = (value, pattern(pixel(value)));
+                    flat_out = (value, run_bytes(value));
                 }
-                for (o, p) in out_run.chunks_exact_mut(8).zip(flat_out.1.iter().cycle()) {
-                    o.copy_from_slice(&p.to_le_bytes());
-                }
+                *out_run = flat_out.1;
                 match next {
                     Some(next) if *next != value => {
                         for (ch, o) in out_run[3 * (LOG8_RUN - 1)..].iter_mut().enumerate() {
