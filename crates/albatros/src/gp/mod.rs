@@ -526,7 +526,10 @@ struct FrameBuilder<'a> {
     setup: Setup,
     out: &'a mut FrameList,
     counters: GpCounters,
-    scratch: Scratch,
+    /// Lists reused face to face, and the vertex cache; one per task when the GP
+    /// runs on several threads, kept across the tasks a thread takes in a frame
+    /// (the cache's places hold for the whole frame).
+    scratch: &'a mut Scratch,
 }
 
 /// Faces per task when the GP runs on several threads (small enough to balance the
@@ -691,17 +694,10 @@ fn frame_with(
             tasks.push(pieces.len() as u32);
         }
     }
-    let run = |pieces: &[Piece], list: &mut FrameList| {
+    let run = |pieces: &[Piece], list: &mut FrameList, scratch: &mut Scratch| {
         let setup = Setup::new(&db.scene, &view);
         setup.header(list);
-        let mut b = FrameBuilder {
-            f: &shared,
-            places,
-            setup,
-            out: list,
-            counters: GpCounters::default(),
-            scratch: Scratch::default(),
-        };
+        let mut b = FrameBuilder { f: &shared, places, setup, out: list, counters: GpCounters::default(), scratch };
         for &piece in pieces {
             match piece {
                 Piece::Visit(v) => b.visit(v),
@@ -715,12 +711,15 @@ fn frame_with(
     let mut c = GpCounters::default();
     let set_up = |stretches: &mut Vec<FrameList>| -> Vec<GpCounters> {
         stretches.resize_with(tasks.len(), FrameList::default);
+        // One scratch per run of tasks a thread takes, not per task: a scratch's
+        // vertex cache is 36 KiB to set up (and its places, this frame's, hold in
+        // every task).
         stretches
             .par_iter_mut()
             .enumerate()
-            .map(|(k, l)| {
+            .map_init(Scratch::default, |scratch, (k, l)| {
                 let start = if k == 0 { 0 } else { tasks[k - 1] as usize };
-                run(&pieces[start..tasks[k] as usize], l)
+                run(&pieces[start..tasks[k] as usize], l, scratch)
             })
             .collect()
     };
@@ -772,14 +771,9 @@ fn frame_with(
             };
             let setup = Setup::new(&db.scene, &view);
             setup.header(out);
-            let mut b = FrameBuilder {
-                f: &shared,
-                places,
-                setup,
-                out,
-                counters: GpCounters::default(),
-                scratch: Scratch::default(),
-            };
+            let mut scratch = Scratch::default();
+            let mut b =
+                FrameBuilder { f: &shared, places, setup, out, counters: GpCounters::default(), scratch: &mut scratch };
             if db.bsp.nodes.is_empty() {
                 db.bsp.traverse(view.position, |v| b.visit(v));
             } else {
