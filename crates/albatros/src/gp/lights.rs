@@ -36,20 +36,27 @@ pub fn add_light_point(
         return false;
     }
     let radius = (f64::from(light.size) * 0.5).max(MIN_LIGHT_DIAMETER_PX * 0.5 * c.z / view.focal);
-    let eye: Vec<EyeVertex> = (0..LIGHT_SIDES)
-        .map(|k| {
-            let a = std::f64::consts::TAU * (k as f64 + 0.5) / LIGHT_SIDES as f64;
-            // Counter-clockwise seen from the eye (y down on the screen).
-            EyeVertex {
-                position: c + DVec3::new(a.cos(), -a.sin(), 0.0) * radius,
-                intensity: f64::from(light.intensity),
-            }
-        })
-        .collect();
-    let outline: Vec<DVec2> = eye.iter().map(|v| view.project(v.position)).collect();
+    let corners = octagon();
+    let eye: [EyeVertex; LIGHT_SIDES] =
+        std::array::from_fn(|k| EyeVertex { position: c + corners[k] * radius, intensity: f64::from(light.intensity) });
+    let outline: [DVec2; LIGHT_SIDES] = std::array::from_fn(|k| view.project(eye[k].position));
     let win = Window { x0: 0.0, y0: 0.0, x1: f64::from(view.screen.width), y1: f64::from(view.screen.height) };
     clip_reference(&outline, &win, scratch);
     let plane = Plane { normal: DVec3::new(0.0, 0.0, -1.0), d: -c.z };
     let source = Source { kind: PrimitiveKind::Light, material: u32::MAX, ids: (li as u32, u32::MAX) };
     setup.add_face(source, None, light.color, &plane, &eye, scratch, &DMat4::IDENTITY, out)
+}
+
+/// The corners of a light point's octagon of radius 1 about its centre in the eye's
+/// axes, counter-clockwise seen from the eye (y down on the screen): the same
+/// `cos` and `sin` for every light, computed once (they were ~2.5 % of default's GP
+/// as eight `sincos` calls a light).
+fn octagon() -> &'static [DVec3; LIGHT_SIDES] {
+    static CORNERS: std::sync::LazyLock<[DVec3; LIGHT_SIDES]> = std::sync::LazyLock::new(|| {
+        std::array::from_fn(|k| {
+            let a = std::f64::consts::TAU * (k as f64 + 0.5) / LIGHT_SIDES as f64;
+            DVec3::new(a.cos(), -a.sin(), 0.0)
+        })
+    });
+    &CORNERS
 }
