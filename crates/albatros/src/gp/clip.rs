@@ -277,6 +277,22 @@ pub fn clip_reference(poly: &[DVec2], win: &Window, out: &mut Vec<DVec2>) {
     finish(poly, win, out);
 }
 
+/// [`clip_reference`], with a shortcut for a polygon whose every vertex is inside
+/// every border (a light point away from the screen's edge, nearly all of them): its
+/// vertices as they are, then [`finish`], the reference's own output for it (each
+/// of its passes keeps an inside vertex in its place and cuts no edge), without the
+/// four passes and their two lists.
+pub fn clip_reference_unless_inside(poly: &[DVec2], win: &Window, out: &mut Vec<DVec2>) {
+    let inside = |p: DVec2| Border::AROUND.iter().all(|b| b.inside(win, p));
+    if win.is_proper() && poly.iter().all(|&p| inside(p)) {
+        out.clear();
+        out.extend_from_slice(poly);
+        finish(poly, win, out);
+    } else {
+        clip_reference(poly, win, out);
+    }
+}
+
 /// The reference's own crossing of the edge `p -> q` with a border line: p + t (q - p),
 /// with the coordinate across the border set exactly.
 fn reference_cut(border: Border, w: &Window, p: DVec2, q: DVec2) -> DVec2 {

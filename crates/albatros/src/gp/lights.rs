@@ -9,7 +9,7 @@
 
 use glam::{DMat4, DVec2, DVec3};
 
-use super::clip::{clip_reference, Window};
+use super::clip::{clip_reference_unless_inside, Window};
 use super::setup::{EyeVertex, Setup, Source};
 use super::{View, NEAR};
 use crate::db::bsp::Plane;
@@ -41,7 +41,7 @@ pub fn add_light_point(
         std::array::from_fn(|k| EyeVertex { position: c + corners[k] * radius, intensity: f64::from(light.intensity) });
     let outline: [DVec2; LIGHT_SIDES] = std::array::from_fn(|k| view.project(eye[k].position));
     let win = Window { x0: 0.0, y0: 0.0, x1: f64::from(view.screen.width), y1: f64::from(view.screen.height) };
-    clip_reference(&outline, &win, scratch);
+    clip_reference_unless_inside(&outline, &win, scratch);
     let plane = Plane { normal: DVec3::new(0.0, 0.0, -1.0), d: -c.z };
     let source = Source { kind: PrimitiveKind::Light, material: u32::MAX, ids: (li as u32, u32::MAX) };
     setup.add_face(source, None, light.color, &plane, &eye, scratch, &DMat4::IDENTITY, out)

@@ -657,6 +657,31 @@ proptest! {
     }
 }
 
+proptest! {
+    #![proptest_config(config(20_000))]
+    /// The light points' clipper, with its shortcut for polygons wholly inside, is
+    /// the reference bit for bit: on random convex polygons (inside, outside,
+    /// crossing), on small-integer ones (vertices on the borders, where the
+    /// shortcut's test must agree with the reference's `inside`), and on polygons
+    /// with a non-finite coordinate.
+    #[test]
+    fn the_reference_unless_inside_is_the_reference(
+        (poly, w) in prop_oneof![convex_case(), grid_case()],
+        spoil in prop::option::of((any::<Index>(), prop_oneof![Just(f64::NAN), Just(f64::INFINITY)])),
+    ) {
+        let mut poly = poly;
+        if let (Some((k, bad)), false) = (spoil, poly.is_empty()) {
+            let k = k.index(poly.len());
+            poly[k].x = bad;
+        }
+        let (mut want, mut got) = (Vec::new(), vec![DVec2::ONE]);
+        clip_reference(&poly, &w, &mut want);
+        clip_reference_unless_inside(&poly, &w, &mut got);
+        let bits = |p: &[DVec2]| p.iter().map(|v| (v.x.to_bits(), v.y.to_bits())).collect::<Vec<_>>();
+        prop_assert_eq!(bits(&got), bits(&want), "{:?} in {:?}", poly, w);
+    }
+}
+
 /// The generator wraps exactly the chosen corners, and every one of them is a vertex
 /// of the clipped polygon.
 #[track_caller]
