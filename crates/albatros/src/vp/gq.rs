@@ -24,6 +24,8 @@
 //!   four children's lists.
 //! - The cell's Z-order index goes down the descent (a child is `4 z + c`): the mask
 //!   memories are read and written without interleaving bits per cell.
+//! - The last-level cells go to a [`FragmentSink`]; the VP's loop implements it with a
+//!   method the descent inlines, not a closure called per fragment.
 
 use super::edge::{EdgeCode, EdgeCoord, Tg, EDGE_FRAC_BITS};
 use super::spp::ends_near;
