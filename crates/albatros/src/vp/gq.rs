@@ -24,6 +24,8 @@
 //!   four children's lists.
 //! - The cell's Z-order index goes down the descent (a child is `4 z + c`): the mask
 //!   memories are read and written without interleaving bits per cell.
+//! - The last-level cells go to a [`FragmentSink`]; the VP's loop implements it with a
+//!   method the descent inlines, not a closure called per fragment.
 
 use super::edge::{EdgeCode, EdgeCoord, Tg, EDGE_FRAC_BITS};
 use super::spp::ends_near;
@@ -171,21 +173,40 @@ pub struct MaskMemory {
 }
 
 /// The Z-order (Morton) index of cell `(x, y)`: the bits of `x` at the even
-/// positions, those of `y` at the odd ones (`x, y < 2^16`).
+/// positions, those of `y` at the odd ones (`x, y < 2^16`). A byte at a time from
+/// [`SPREAD_BYTE`] (~16 instructions rather than ~30 by shifts and masks: the VP
+/// loop finds the Z-order index of each last-level cell a polygon covers wholly).
 #[inline]
 pub fn morton(x: u32, y: u32) -> usize {
     /// The 16 low bits of `v` spread to the even bit positions.
     #[inline(always)]
     fn spread(v: u32) -> u64 {
-        let mut v = u64::from(v & 0xFFFF);
-        v = (v | v << 8) & 0x00FF_00FF;
-        v = (v | v << 4) & 0x0F0F_0F0F;
-        v = (v | v << 2) & 0x3333_3333;
-        v = (v | v << 1) & 0x5555_5555;
-        v
+        u64::from(SPREAD_BYTE[(v & 0xFF) as usize]) | u64::from(SPREAD_BYTE[(v >> 8 & 0xFF) as usize]) << 16
     }
     (spread(x) | spread(y) << 1) as usize
 }
+
+/// [`morton`] by its definition, bit by bit (for [`SPREAD_BYTE`] and tests).
+const fn morton_plain(x: u32, y: u32) -> usize {
+    let mut z = 0;
+    let mut i = 0;
+    while i < 16 {
+        z |= ((x as usize >> i) & 1) << (2 * i) | ((y as usize >> i) & 1) << (2 * i + 1);
+        i += 1;
+    }
+    z
+}
+
+/// The bits of a byte spread to the even bit positions of 16: [`morton`]'s table.
+const SPREAD_BYTE: [u16; 256] = {
+    let mut table = [0u16; 256];
+    let mut v = 0;
+    while v < 256 {
+        table[v] = morton_plain(v as u32, 0) as u16;
+        v += 1;
+    }
+    table
+};
 
 impl MaskMemory {
     /// The memory of level `level` (a `2^level` square of cells) for a screen of
@@ -533,6 +554,28 @@ pub const NO_BOX: [u32; 4] = [0, u32::MAX, 0, u32::MAX];
 /// [`Fragment::cells`] of a fragment of the one cell at its `(px, py)`.
 pub const ONE_CELL: u8 = 1;
 
+/// Where a descent hands its fragments ([`CellProcessors::descend_to`],
+/// [`CellProcessors::descend_filling_to`]). The VP's loop implements it with an
+/// `#[inline(always)]` method, so that the descent's splits take in its work per
+/// fragment rather than calling a closure (~20 instructions of the call's saved
+/// registers and the fragment's copy on the stack each, in two of every three
+/// last-level cells on `default`); [`CellProcessors::descend`] and
+/// [`CellProcessors::descend_filling`] take any `FnMut(Fragment)`.
+pub trait FragmentSink {
+    /// One fragment of the polygon being descended.
+    fn fragment(&mut self, frag: Fragment<'_>);
+}
+
+/// A closure as a [`FragmentSink`].
+struct EachFragment<F>(F);
+
+impl<F: FnMut(Fragment<'_>)> FragmentSink for EachFragment<F> {
+    #[inline]
+    fn fragment(&mut self, frag: Fragment<'_>) {
+        (self.0)(frag);
+    }
+}
+
 /// The polygon the GQs are working on.
 pub struct GqPolygon<'a> {
     /// Its edges.
@@ -729,7 +772,17 @@ impl CellProcessors {
         counters: &mut Counters,
         spp: &mut impl FnMut(Fragment),
     ) {
-        self.descend_inner::<STATS, false>(poly, counters, spp);
+        self.descend_inner::<STATS, false>(poly, counters, &mut EachFragment(spp));
+    }
+
+    /// [`Self::descend`] into a [`FragmentSink`].
+    pub fn descend_to<const STATS: bool>(
+        &mut self,
+        poly: &GqPolygon,
+        counters: &mut Counters,
+        sink: &mut impl FragmentSink,
+    ) {
+        self.descend_inner::<STATS, false>(poly, counters, sink);
     }
 
     /// [`Self::descend`] with counting off, with two shortcuts for the cells wholly
@@ -744,14 +797,19 @@ impl CellProcessors {
     /// transparent polygons. The counters are not touched (counting runs the
     /// machine's every step: [`Self::descend`]).
     pub fn descend_filling(&mut self, poly: &GqPolygon, counters: &mut Counters, spp: &mut impl FnMut(Fragment)) {
-        self.descend_inner::<false, true>(poly, counters, spp);
+        self.descend_inner::<false, true>(poly, counters, &mut EachFragment(spp));
+    }
+
+    /// [`Self::descend_filling`] into a [`FragmentSink`].
+    pub fn descend_filling_to(&mut self, poly: &GqPolygon, counters: &mut Counters, sink: &mut impl FragmentSink) {
+        self.descend_inner::<false, true>(poly, counters, sink);
     }
 
     fn descend_inner<const STATS: bool, const FILL: bool>(
         &mut self,
         poly: &GqPolygon,
         counters: &mut Counters,
-        spp: &mut impl FnMut(Fragment),
+        spp: &mut impl FragmentSink,
     ) {
         let start = self.bounding_cell(poly.bbox);
         if STATS {
@@ -791,7 +849,7 @@ impl CellProcessors {
             *a = ActiveEdge::at_cell(i as u32, e, x0, y0, side);
         }
         if start.level == self.root_level {
-            spp(Fragment {
+            spp.fragment(Fragment {
                 px: start.x * 4,
                 py: start.y * 4,
                 active: &self.lists[first..first + n],
@@ -903,7 +961,7 @@ impl CellProcessors {
         start: Cell,
         poly: &GqPolygon,
         counters: &mut Counters,
-        spp: &mut impl FnMut(Fragment),
+        spp: &mut impl FragmentSink,
     ) -> bool {
         if start.level + 1 >= self.root_level {
             return false;
@@ -985,7 +1043,7 @@ impl CellProcessors {
         half: i64,
         poly: &GqPolygon,
         counters: &mut Counters,
-        spp: &mut impl FnMut(Fragment),
+        spp: &mut impl FragmentSink,
     ) {
         self.split_step::<STATS, FILL, false>(cell, z, list, len, half, poly, counters, spp);
     }
@@ -1006,7 +1064,7 @@ impl CellProcessors {
         half: i64,
         poly: &GqPolygon,
         counters: &mut Counters,
-        spp: &mut impl FnMut(Fragment),
+        spp: &mut impl FragmentSink,
     ) {
         let k = cell.level as usize;
         let child_level = cell.level + 1;
@@ -1042,8 +1100,9 @@ impl CellProcessors {
         // across V's lines from the first border, by TG (`c = dx + 2 dy`).
         let across_horizontal = [0, 0, half, half];
         let across_vertical = [0, half, 0, half];
+        let thresholds = ChildThresholds::new(half);
         for a in active {
-            let code = child_codes(a.v1.0, a.v2.0, half, a.kind);
+            let code = child_codes(a.v1.0, a.v2.0, &thresholds, a.kind);
             codes_all &= code.codes;
             if !STATS && codes_all >> 4 & open == 0 {
                 // Every open child is OUT: no child to descend into, none IN.
@@ -1095,7 +1154,13 @@ impl CellProcessors {
                 }
                 if LAST || child_level == self.root_level {
                     // In the descent's order, cell by cell (this cell of the parent).
-                    spp(Fragment { px: cell.x * 8, py: cell.y * 8, active: &[], cells: 1 << c, bbox: poly.bbox });
+                    spp.fragment(Fragment {
+                        px: cell.x * 8,
+                        py: cell.y * 8,
+                        active: &[],
+                        cells: 1 << c,
+                        bbox: poly.bbox,
+                    });
                 } else {
                     self.fill(child_cell, 4 * z + c as usize, poly.opaque, spp);
                 }
@@ -1111,7 +1176,7 @@ impl CellProcessors {
                 continue;
             }
             if LAST || child_level == self.root_level {
-                spp(Fragment {
+                spp.fragment(Fragment {
                     px: child_cell.x * 4,
                     py: child_cell.y * 4,
                     active: &self.lists[block + start..block + end],
@@ -1149,7 +1214,7 @@ impl CellProcessors {
     /// of `split` with no active edge), down to the last level's cells, which go to
     /// `spp` with no active edge, the open children of a cell of level L - 1 in one
     /// fragment.
-    fn fill(&mut self, cell: Cell, z: usize, opaque: bool, spp: &mut impl FnMut(Fragment)) {
+    fn fill(&mut self, cell: Cell, z: usize, opaque: bool, spp: &mut impl FragmentSink) {
         let child_level = cell.level + 1;
         let todo = !self.memories[child_level as usize].children(z) & 0xF;
         if opaque && self.masks.has(child_level) {
@@ -1157,7 +1222,7 @@ impl CellProcessors {
         }
         if child_level == self.root_level {
             if todo != 0 {
-                spp(Fragment { px: cell.x * 8, py: cell.y * 8, active: &[], cells: todo, bbox: NO_BOX });
+                spp.fragment(Fragment { px: cell.x * 8, py: cell.y * 8, active: &[], cells: todo, bbox: NO_BOX });
             }
             return;
         }
@@ -1467,35 +1532,121 @@ struct ChildCodes {
 /// `hi` its least and greatest V, the ROM's readings are the thermometer codes
 /// `(hi <= 0) + (hi <= half)` (how many of the children across it the line lies at or
 /// before the near border of) and `(lo >= half) + (lo >= 2 half)` (at or beyond the far
-/// border of), each 0, 1 or 2 (`half > 0`), two bits of the table's address each: 8
-/// comparisons and no variable shift, the children's bit order by TG, the sides by
-/// LR and which half is which by [`KIND_DOWN`] left to the table. The midpoint lies
-/// between V1 and V2, so the stretches are `(lo, Vm)` and `(Vm, hi)` with `lo`, `hi`
-/// the least and greatest of V1, V2: the first half's when V increases, the second's
-/// when it decreases ([`KIND_DOWN`], known for the edge).
+/// border of), each 0, 1 or 2 (`half > 0`), two bits of the table's address each
+/// ([`ChildThresholds`]): 8 comparisons and no variable shift, the children's bit
+/// order by TG, the sides by LR and which half is which by [`KIND_DOWN`] left to the
+/// table. The midpoint lies between V1 and V2, so the stretches are `(lo, Vm)` and
+/// `(Vm, hi)` with `lo`, `hi` the least and greatest of V1, V2: the first half's when V
+/// increases, the second's when it decreases ([`KIND_DOWN`], known for the edge).
+///
+/// On x86-64, the 8 comparisons as the sign bits of four SSE2 subtractions of two
+/// lanes, gathered by two `shufps` and two `movmskps` (~30 instructions an edge
+/// rather than ~42: the GQ's splits make ~146 k of these on `default`); elsewhere
+/// [`child_codes_plain`]. The same address either way (tested).
 #[inline(always)]
-fn child_codes(d1: i64, d2: i64, half: i64, kind: u32) -> ChildCodes {
+fn child_codes(d1: i64, d2: i64, t: &ChildThresholds, kind: u32) -> ChildCodes {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::*;
+        // The midpoint's comparisons on the sum: `(d1 + d2) >> 1 < t` exactly when
+        // `d1 + d2 < 2 t` (a shift of two 64-bit lanes is no SSE2 instruction).
+        let sum = d1 + d2;
+        let (lo, hi) = if kind & KIND_DOWN != 0 { (d2, d1) } else { (d1, d2) };
+        // SAFETY: SSE2 operations on values in registers, and SSE2 is x86-64's
+        // baseline.
+        #[allow(unsafe_code, reason = "SSE2 intrinsics, x86-64's baseline")]
+        let bits = unsafe {
+            let (m, h, l) = (_mm_set1_epi64x(sum), _mm_set1_epi64x(hi), _mm_set1_epi64x(lo));
+            // Lanes (weaker, stronger) of each code; the high halves of the
+            // differences hold their signs, the code's two bits.
+            let before = _mm_shuffle_ps::<0b11_01_11_01>(
+                _mm_castsi128_ps(_mm_sub_epi64(m, t.before_sum)),
+                _mm_castsi128_ps(_mm_sub_epi64(h, t.before)),
+            );
+            let short = _mm_shuffle_ps::<0b11_01_11_01>(
+                _mm_castsi128_ps(_mm_sub_epi64(l, t.short)),
+                _mm_castsi128_ps(_mm_sub_epi64(m, t.short_sum)),
+            );
+            (_mm_movemask_ps(before) | _mm_movemask_ps(short) << 4) as u32
+        };
+        let address = (bits | kind) as usize & (CHILD_CODES.len() - 1);
+        ChildCodes { codes: u32::from(CHILD_CODES[address]), vm: sum >> 1 }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    child_codes_plain(d1, d2, t.half, kind)
+}
+
+/// [`child_codes`] one comparison at a time, by its definition.
+#[cfg_attr(target_arch = "x86_64", allow(dead_code, reason = "the other targets' copy, tested against the SSE2 one"))]
+#[inline(always)]
+fn child_codes_plain(d1: i64, d2: i64, half: i64, kind: u32) -> ChildCodes {
     let dm = (d1 + d2) >> 1;
     let (lo, hi) = if kind & KIND_DOWN != 0 { (d2, d1) } else { (d1, d2) };
     // `neg(v)`: 1 when `v < 0`, by its sign bit (|V| < 2^46: no overflow).
     let neg = |v: i64| (v as u64 >> 63) as u32;
+    // A thermometer code as two bits: the weaker condition's in bit 0, the
+    // stronger's (which implies it) in bit 1 ([`CHILD_CODES`]).
+    let code = |weaker: u32, stronger: u32| weaker | stronger << 1;
     // The stretch `(lo, Vm)`: its greatest V is Vm; `(Vm, hi)`: its least is Vm.
-    let before_low = neg(dm - 1) + neg(dm - (half + 1));
-    let before_high = neg(hi - 1) + neg(hi - (half + 1));
+    let before_low = code(neg(dm - (half + 1)), neg(dm - 1));
+    let before_high = code(neg(hi - (half + 1)), neg(hi - 1));
     // Two less the "at or beyond" codes.
-    let short_low = neg(lo - half) + neg(lo - 2 * half);
-    let short_high = neg(dm - half) + neg(dm - 2 * half);
+    let short_low = code(neg(lo - 2 * half), neg(lo - half));
+    let short_high = code(neg(dm - 2 * half), neg(dm - half));
     let address =
         (before_low | before_high << 2 | short_low << 4 | short_high << 6 | kind) as usize & (CHILD_CODES.len() - 1);
     ChildCodes { codes: u32::from(CHILD_CODES[address]), vm: dm }
 }
 
+/// [`child_codes`]' thresholds for a cell of half side `half`, made once a split: V
+/// less each threshold is negative exactly when V lies below it, which is the code's
+/// condition (`V <= 0` is `V - 1 < 0`). Two lanes a code, the weaker condition in
+/// lane 0: "at or before" `V <= half` and `V <= 0`; "short of" `V < 2 half` and
+/// `V < half`; and each doubled, for the midpoint's sum.
+#[derive(Clone, Copy)]
+struct ChildThresholds {
+    #[cfg(target_arch = "x86_64")]
+    before: std::arch::x86_64::__m128i,
+    #[cfg(target_arch = "x86_64")]
+    short: std::arch::x86_64::__m128i,
+    #[cfg(target_arch = "x86_64")]
+    before_sum: std::arch::x86_64::__m128i,
+    #[cfg(target_arch = "x86_64")]
+    short_sum: std::arch::x86_64::__m128i,
+    #[cfg(not(target_arch = "x86_64"))]
+    half: i64,
+}
+
+impl ChildThresholds {
+    #[inline(always)]
+    fn new(half: i64) -> Self {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::*;
+            // SAFETY: SSE2 operations on values in registers, and SSE2 is x86-64's
+            // baseline.
+            #[allow(unsafe_code, reason = "SSE2 intrinsics, x86-64's baseline")]
+            unsafe {
+                Self {
+                    before: _mm_set_epi64x(1, half + 1),
+                    short: _mm_set_epi64x(half, 2 * half),
+                    before_sum: _mm_set_epi64x(2, 2 * (half + 1)),
+                    short_sum: _mm_set_epi64x(2 * half, 4 * half),
+                }
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        Self { half }
+    }
+}
+
 /// [`child_codes`]'s table: at address `b0 | b1 << 2 | a0 << 4 | a1 << 6 | kind`
 /// (thermometer codes `b` "at or before the near border", `a` "at or beyond the far
-/// border" of the stretches `(lo, Vm)` (0) and `(Vm, hi)` (1); `kind` [`KIND_VERTICAL`],
-/// [`KIND_LR`] and [`KIND_DOWN`], which makes stretch 1 the first half along V's
-/// lines), CI in bits 0-3, CRI in bits 4-7, `CRI & !CI` in bits 8-11. Addresses with
-/// a code 3 never occur.
+/// border" of the stretches `(lo, Vm)` (0) and `(Vm, hi)` (1), each as two bits, the
+/// weaker condition's and the stronger's: 0, 1 and 3 for 0, 1 and 2 (for `a`, two less
+/// the code); `kind` [`KIND_VERTICAL`], [`KIND_LR`] and [`KIND_DOWN`], which makes
+/// stretch 1 the first half along V's lines), CI in bits 0-3, CRI in bits 4-7, `CRI &
+/// !CI` in bits 8-11. Addresses with a two-bit field 2 never occur.
 const CHILD_CODES: [u16; 2048] = child_code_table();
 
 /// Builds [`CHILD_CODES`]: the bits the plain `edge_code` forms, by the same rule.
@@ -1503,10 +1654,13 @@ const fn child_code_table() -> [u16; 2048] {
     let mut table = [0u16; 2048];
     let mut address = 0;
     while address < 2048 {
-        let (mut b0, mut b1) = (address & 3, address >> 2 & 3);
+        /// A two-bit field 0, 1 or 3 is the code 0, 1 or 2 (2 never occurs: read as 1).
+        const fn code(field: usize) -> usize {
+            field - (field >> 1)
+        }
+        let (mut b0, mut b1) = (code(address & 3), code(address >> 2 & 3));
         // The address holds two less the "at or beyond" codes.
-        // (3 never occurs: read as 2.)
-        let (mut a0, mut a1) = (2usize.saturating_sub(address >> 4 & 3), 2usize.saturating_sub(address >> 6 & 3));
+        let (mut a0, mut a1) = (2 - code(address >> 4 & 3), 2 - code(address >> 6 & 3));
         if address as u32 & KIND_DOWN != 0 {
             // V decreases: the stretch `(Vm, hi)` is the first half along V's lines.
             (b0, b1, a0, a1) = (b1, b0, a1, a0);
@@ -1611,6 +1765,15 @@ mod tests {
             }
         }
         assert_eq!(morton(0xFFFF, 0xFFFF), u32::MAX as usize);
+        // The table's copy is the bit-by-bit definition.
+        let mut state = 0x2545_F491_4F6C_DD1D_u64;
+        for i in 0..100_000u32 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let (x, y) = if i < 65_536 { (i, i.rotate_left(8) & 0xFFFF) } else { (state as u32, (state >> 32) as u32) };
+            assert_eq!(morton(x, y), morton_plain(x, y), "({x}, {y})");
+        }
     }
 
     /// The memory's cells, one by one and as nibbles of children, and its pre-masks:
@@ -1712,9 +1875,12 @@ mod tests {
                     let kind = if vertical { KIND_VERTICAL } else { 0 }
                         | if lr { KIND_LR } else { 0 }
                         | if d1 > d2 { KIND_DOWN } else { 0 };
-                    let fast = child_codes(d1, d2, half, kind);
                     let codes = u32::from(ci) | u32::from(cri) << 4 | u32::from(cri & !ci) << 8;
-                    assert_eq!(fast, ChildCodes { codes, vm: dm }, "d1 {d1}, d2 {d2}, half {half}, {tg:?}, lr {lr}");
+                    let want = ChildCodes { codes, vm: dm };
+                    let fast = child_codes(d1, d2, &ChildThresholds::new(half), kind);
+                    assert_eq!(fast, want, "d1 {d1}, d2 {d2}, half {half}, {tg:?}, lr {lr}");
+                    let plain = child_codes_plain(d1, d2, half, kind);
+                    assert_eq!(plain, want, "plain: d1 {d1}, d2 {d2}, half {half}, {tg:?}, lr {lr}");
                 }
             }
         }

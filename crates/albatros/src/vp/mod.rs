@@ -27,6 +27,7 @@ use glam::Vec3;
 use crate::frame::{FrameList, FramePolygon};
 use crate::model::stats::Counters;
 use cc::ColorComputers;
+use edge::EdgeCode;
 use gq::{CellProcessors, GqPolygon, MaskLevels};
 use spp::SubpixelProcessors;
 use tables::SppMode;
@@ -321,45 +322,21 @@ impl VideoProcessor {
                 let gp = GqPolygon { edges, opaque, bbox };
                 sink.polygon(index);
                 let spp_poly = spp.polygon(bbox, poly.transparency);
-                let mut fragment = |frag: gq::Fragment| {
-                    if !STATS && frag.active.is_empty() {
-                        // With counting off, cells no edge crosses (wholly inside, up to
-                        // four siblings at once) need no look-ups, and an opaque
-                        // polygon's are marked covered by the GQ
-                        // ([`CellProcessors::descend_filling`]).
-                        let mut cells = frag.cells;
-                        while cells != 0 {
-                            let c = cells.trailing_zeros();
-                            cells &= cells - 1;
-                            let (px, py) = (frag.px + spp::CELL_SIDE * (c & 1), frag.py + spp::CELL_SIDE * (c >> 1));
-                            let vis = spp.inside(px, py, &spp_poly);
-                            if hierarchical && !opaque && vis.covered {
-                                covered_cells.push(gq::morton(px / spp::CELL_SIDE, py / spp::CELL_SIDE));
-                            }
-                            let column = &mut work[(px / spp::CELL_SIDE) as usize];
-                            *column += work::INSIDE_CELL;
-                            if vis.any() {
-                                *column += work::VISIBLE_CELL;
-                                sink.cell(&vis);
-                            }
-                        }
-                        return;
-                    }
-                    let vis = spp.process::<STATS>(&frag, edges, &spp_poly, &mut inner);
-                    if hierarchical && vis.covered {
-                        covered_cells.push(gq::morton(vis.px / spp::CELL_SIDE, vis.py / spp::CELL_SIDE));
-                    }
-                    let column = &mut work[(frag.px / spp::CELL_SIDE) as usize];
-                    *column += work::EDGE_CELL;
-                    if vis.any() {
-                        *column += work::VISIBLE_CELL;
-                        sink.cell(&vis);
-                    }
+                let mut fragments = Fragments::<'_, _, STATS> {
+                    spp: &mut *spp,
+                    edges,
+                    spp_poly: &spp_poly,
+                    inner: &mut inner,
+                    covered_cells: &mut covered_cells,
+                    work: &mut *work,
+                    sink: &mut *sink,
+                    hierarchical,
+                    opaque,
                 };
                 if STATS {
-                    gq.descend::<STATS>(&gp, counters, &mut fragment);
+                    gq.descend_to::<STATS>(&gp, counters, &mut fragments);
                 } else {
-                    gq.descend_filling(&gp, counters, &mut fragment);
+                    gq.descend_filling_to(&gp, counters, &mut fragments);
                 }
                 // Cells this polygon finished covering are marked for the next ones.
                 gq.mark_covered_cells(&mut covered_cells);
@@ -416,6 +393,67 @@ impl VideoProcessor {
             inner.color.first_writes += firsts;
             inner.color.read_modify_writes += inner.spp.pixels_visible - firsts;
             counters.add(&inner);
+        }
+    }
+}
+
+/// [`VideoProcessor::run`]'s work on the fragments of one polygon, handed to the
+/// GQ's descent as a [`gq::FragmentSink`] whose method the descent inlines: the
+/// SPPs' look-ups, Greene's covered cells, the work per column and the sink. (As a
+/// closure it stayed out of line, called once a fragment: its saved registers, the
+/// fragment built on the stack and its captures read back cost ~20 instructions a
+/// call, ~109 k calls a frame on `default`.)
+struct Fragments<'r, S, const STATS: bool> {
+    spp: &'r mut SubpixelProcessors,
+    edges: &'r [EdgeCode],
+    spp_poly: &'r spp::SppPolygon,
+    /// The SPP stage's counters.
+    inner: &'r mut Counters,
+    /// The last-level cells the polygon covers wholly, in Z order.
+    covered_cells: &'r mut Vec<usize>,
+    /// [`VideoProcessor::column_work`].
+    work: &'r mut [u32],
+    sink: &'r mut S,
+    /// Greene's hierarchical coverage ([`VpConfig::hierarchical`]).
+    hierarchical: bool,
+    opaque: bool,
+}
+
+impl<S: Sink, const STATS: bool> gq::FragmentSink for Fragments<'_, S, STATS> {
+    #[inline(always)]
+    fn fragment(&mut self, frag: gq::Fragment<'_>) {
+        if !STATS && frag.active.is_empty() {
+            // With counting off, cells no edge crosses (wholly inside, up to
+            // four siblings at once) need no look-ups, and an opaque
+            // polygon's are marked covered by the GQ
+            // ([`CellProcessors::descend_filling`]).
+            let mut cells = frag.cells;
+            while cells != 0 {
+                let c = cells.trailing_zeros();
+                cells &= cells - 1;
+                let (px, py) = (frag.px + spp::CELL_SIDE * (c & 1), frag.py + spp::CELL_SIDE * (c >> 1));
+                let vis = self.spp.inside(px, py, self.spp_poly);
+                if self.hierarchical && !self.opaque && vis.covered {
+                    self.covered_cells.push(gq::morton(px / spp::CELL_SIDE, py / spp::CELL_SIDE));
+                }
+                let column = &mut self.work[(px / spp::CELL_SIDE) as usize];
+                *column += work::INSIDE_CELL;
+                if vis.any() {
+                    *column += work::VISIBLE_CELL;
+                    self.sink.cell(&vis);
+                }
+            }
+            return;
+        }
+        let vis = self.spp.process::<STATS>(&frag, self.edges, self.spp_poly, self.inner);
+        if self.hierarchical && vis.covered {
+            self.covered_cells.push(gq::morton(vis.px / spp::CELL_SIDE, vis.py / spp::CELL_SIDE));
+        }
+        let column = &mut self.work[(frag.px / spp::CELL_SIDE) as usize];
+        *column += work::EDGE_CELL;
+        if vis.any() {
+            *column += work::VISIBLE_CELL;
+            self.sink.cell(&vis);
         }
     }
 }
