@@ -3432,9 +3432,34 @@ fn read_out_log8_rows<'a>(
             continue;
         }
         let below_y = (y + 1).min(h - 1);
+        // The whole runs from the row's start whose every word, and every word
+        // below, is the row's first (the open sky): their half sums are that word's
+        // mean with itself, so each is a flat run (found here a run at a time, as
+        // pass 1 would, with no loop of its own); a row of them all and nothing
+        // else, its output is the flat runs' bytes over and over.
+        let (word, uniform) = uniform_runs(segment, w, y, below_y);
+        if uniform > 0 {
+            if flat_mean.0 != word {
+                flat_mean = (word, pairs.mean_words(word, word));
+            }
+            let value = flat_mean.1;
+            if uniform == w {
+                if flat_out.0 != value {
+                    flat_out = (value, run_bytes(value));
+                }
+                for out_run in out_row.chunks_exact_mut(3 * LOG8_RUN) {
+                    out_run.copy_from_slice(&flat_out.1);
+                }
+                continue;
+            }
+            for k in 0..uniform / LOG8_RUN {
+                flat_runs[k] = true;
+                line[k * LOG8_RUN] = value;
+            }
+        }
         // Pass 1: half sums of vertically adjacent pixels, a segment at a time (the
-        // shorter of the row's and the row below's).
-        let mut x0 = 0;
+        // shorter of the row's and the row below's), after the uniform runs.
+        let mut x0 = uniform;
         while x0 < w {
             let (row, below) = (segment(y, x0), segment(below_y, x0));
             let n = row.len().min(below.len());
@@ -3479,6 +3504,38 @@ fn read_out_log8_rows<'a>(
         let x0 = w / LOG8_RUN * LOG8_RUN;
         read_out_log8_pass2_end(runs_out.into_remainder(), &line[x0..], pairs, table);
     }
+}
+
+/// Row `y`'s first word and how many of the pixels `0..w` of rows `y` and `below`
+/// (read by `segment` as [`read_out_log8_from`]'s) hold it in both, counted in
+/// whole runs of [`LOG8_RUN`] from the start: `w` only when `w` is a whole number
+/// of runs and both rows are that word throughout. Each run's 32 words are
+/// compared at once (the compiler does it in vector registers), the same work as
+/// the first pass's test of a flat run, which these runs then skip.
+#[inline(always)]
+fn uniform_runs<'a>(
+    segment: &impl Fn(usize, usize) -> &'a [Word8],
+    w: usize,
+    y: usize,
+    below: usize,
+) -> (Word8, usize) {
+    let word = segment(y, 0)[0];
+    let whole = w / LOG8_RUN * LOG8_RUN;
+    let mut x0 = 0;
+    while x0 < whole {
+        let (a, b) = (segment(y, x0), segment(below, x0));
+        let n = a.len().min(b.len()).min(whole - x0) / LOG8_RUN * LOG8_RUN;
+        if n == 0 {
+            break;
+        }
+        for (a, b) in a[..n].chunks_exact(LOG8_RUN).zip(b[..n].chunks_exact(LOG8_RUN)) {
+            if a.iter().zip(b).fold(0, |d, (&p, &q)| d | (p ^ word) | (q ^ word)) != 0 {
+                return (word, x0);
+            }
+            x0 += LOG8_RUN;
+        }
+    }
+    (word, x0)
 }
 
 /// F2's second pass over the last pixels of a row (`line`: their half sums from
@@ -3993,6 +4050,42 @@ mod tests {
     /// The readout, whole and in bands, gives the reference's bytes: every
     /// fixed-point mode, with and without F2, on random codes with runs of equal
     /// words and zeros.
+    /// The 8-bit log code's shortcut for the uniform runs at a row's start
+    /// (`uniform_runs`): rows wholly of one word (a whole number of runs or not),
+    /// rows of it for some runs and then not, a row of it whose row below is not,
+    /// and the last row (its own row below), against the reference readout.
+    #[test]
+    fn read_out_log8_uniform_rows_match_reference() {
+        let mode = VbMode::Log { bits: 8 };
+        let (a, b, c) = ([40, 90, 200], [41, 90, 200], [255, 3, 0]);
+        for w in [16usize, 33, 48, 53, 64] {
+            // Row 0, 1, 3: all `a`; row 2: `a` for two runs, then `b`; row 4: `a` but
+            // its last pixel; row 5: all `c`.
+            let rows: [Box<dyn Fn(usize) -> [u16; 3]>; 6] = [
+                Box::new(|_| a),
+                Box::new(|_| a),
+                Box::new(|x| if x < 2 * LOG8_RUN { a } else { b }),
+                Box::new(|_| a),
+                Box::new(move |x| if x + 1 < w { a } else { b }),
+                Box::new(|_| c),
+            ];
+            let h = rows.len();
+            let codes: Vec<[u16; 3]> = (0..h).flat_map(|y| (0..w).map(|x| rows[y](x)).collect::<Vec<_>>()).collect();
+            let mut vb = VideoBuffer::new(w as u32, h as u32, mode);
+            vb.set_codes(&codes);
+            for gamma in [2.2, 1.0] {
+                let opts = Readout { filter: true, gamma };
+                let expect = reference_read_out(w, h, &codes, true, mode, gamma);
+                assert_eq!(vb.read_out(&opts).pixels, expect, "{w}x{h} gamma {gamma}");
+                for y in 0..h {
+                    let mut row = vec![0; 3 * w];
+                    vb.read_out_rows(&opts, y..y + 1, &mut row);
+                    assert_eq!(row, expect[3 * w * y..][..3 * w], "{w}x{h} row {y} alone");
+                }
+            }
+        }
+    }
+
     #[test]
     fn read_out_matches_reference() {
         let mut rng = Rng(0x0F2_0F2);
