@@ -322,67 +322,51 @@ macro_rules! vertex_words_avx2_body {
                 return vertex_words_far(e, px, py, vertical, w);
             }
             use std::arch::x86_64::{
-                __m256i, _mm256_add_epi32, _mm256_and_si256, _mm256_blendv_epi8, _mm256_castps_si256, _mm256_castsi256_ps,
-                _mm256_castsi256_si128, _mm256_cmpgt_epi32, _mm256_cmpgt_epi64, _mm256_extracti128_si256,
-                _mm256_load_si256, _mm256_mullo_epi32, _mm256_packs_epi32, _mm256_permute4x64_epi64,
-                _mm256_set1_epi16, _mm256_set1_epi32, _mm256_set1_epi64x, _mm256_set_epi64x, _mm256_setr_epi32,
-                _mm256_shuffle_ps, _mm256_store_si256, _mm256_sub_epi32, _mm256_sub_epi64, _mm_movemask_epi8,
-                _mm_packs_epi16,
+                _mm256_add_epi32, _mm256_and_si256, _mm256_blendv_epi8, _mm256_castsi256_si128, _mm256_cmpgt_epi32,
+                _mm256_extracti128_si256, _mm256_load_si256, _mm256_mullo_epi32, _mm256_packs_epi32,
+                _mm256_set1_epi16, _mm256_set1_epi32, _mm256_setr_epi32, _mm256_store_si256, _mm256_sub_epi32,
+                _mm_movemask_epi8, _mm_packs_epi16,
             };
-            const SUB: i64 = (SNAP_ONE / 4) as i64;
+            const ONE: i32 = SNAP_ONE;
+            const HALF_SUB: i32 = SNAP_ONE / 8;
+            const SUB: i32 = SNAP_ONE / 4;
             let line = &e.exact;
             let near = vertex_near_avx2(offsets, vertical);
-            let Some(VertexStart { near, e_cell, per_lane, per_word }) = vertex_start_at(line, px, py, vertical, near)
-            else {
+            if near == 0 {
                 return w;
-            };
-            // -E at each pixel's first centre, lanes of words 0 and 1 in one register, of
-            // words 2 and 3 in the other, each clamped to 32 bits.
-            const E_LIMIT: i64 = 1 << 30;
-            const STEP_LIMIT: i64 = 1 << 27;
-            // `|E| <= 2^30` at pixel (0, 0) and `|per_lane|, |per_word| <= 2^27`, as unsigned
-            // compares (a sum of the two steps is below `2^28` only when both are).
-            let small = (((e_cell + E_LIMIT) as u64) < (2 * E_LIMIT) as u64)
-                & ((((per_lane + STEP_LIMIT) | (per_word + STEP_LIMIT)) as u64) < (2 * STEP_LIMIT) as u64);
-            let (t01, t23) = if small {
-                // Every value (and every partial sum on the way to it) within
-                // `2^30 + 6 * 2^27 < 2^31`, so the clamp keeps it: 32-bit lanes from the
-                // start, about 20 instructions with the check against some 45 for the
-                // 64-bit lanes below. (Every cell of `many` takes this way.)
-                // The word steps by a mask rather than a product, `2 per_word` as a sum
-                // of the broadcast: 4 instructions fewer, the same numbers.
-                let (per_lane, per_word) = (_mm256_set1_epi32(per_lane as i32), _mm256_set1_epi32(per_word as i32));
-                let steps = _mm256_add_epi32(
-                    _mm256_mullo_epi32(per_lane, _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3)),
-                    _mm256_and_si256(per_word, _mm256_setr_epi32(0, 0, 0, 0, -1, -1, -1, -1)),
-                );
-                let t01 = _mm256_sub_epi32(_mm256_set1_epi32(-e_cell as i32), steps);
-                (t01, _mm256_sub_epi32(t01, _mm256_add_epi32(per_word, per_word)))
-            } else {
-                // A word's four lanes a register (every term below 2^48: no overflow).
-                let lanes = _mm256_set_epi64x(3 * per_lane, 2 * per_lane, per_lane, 0);
-                let first = _mm256_sub_epi64(_mm256_set1_epi64x(-e_cell), lanes);
-                let down = _mm256_set1_epi64x(per_word);
-                let (max, min) = (_mm256_set1_epi64x(i64::from(i32::MAX)), _mm256_set1_epi64x(i64::from(i32::MIN)));
-                let clamp = |v: __m256i| {
-                    let v = _mm256_blendv_epi8(v, max, _mm256_cmpgt_epi64(v, max));
-                    _mm256_blendv_epi8(v, min, _mm256_cmpgt_epi64(min, v))
-                };
-                let w0 = clamp(first);
-                let w1 = clamp(_mm256_sub_epi64(first, down));
-                let w2 = clamp(_mm256_sub_epi64(_mm256_sub_epi64(first, down), down));
-                let w3 = clamp(_mm256_sub_epi64(_mm256_sub_epi64(_mm256_sub_epi64(first, down), down), down));
-                // The low halves of two words' lanes as eight `i32` in lane order: the shuffle
-                // gives `a0 a1 b0 b1 | a2 a3 b2 b3`, the permute puts the pairs in order.
-                const LOW_HALVES: i32 = 0b10_00_10_00;
-                const PAIRS_IN_ORDER: i32 = 0b11_01_10_00;
-                let narrow = |a: __m256i, b: __m256i| {
-                    let (a, b) = (_mm256_castsi256_ps(a), _mm256_castsi256_ps(b));
-                    let mixed = _mm256_castps_si256(_mm256_shuffle_ps::<LOW_HALVES>(a, b));
-                    _mm256_permute4x64_epi64::<PAIRS_IN_ORDER>(mixed)
-                };
-                (narrow(w0, w1), narrow(w2, w3))
-            };
+            }
+            // The 32-bit numbers below hold for `|a|, |b| < VERTEX_COEFFICIENT_LIMIT`
+            // (every edge shorter than 8192 pixels each way); a longer one goes to
+            // `vertex_words_wide`. One unsigned compare of both coefficients.
+            const LIMIT: i64 = VERTEX_COEFFICIENT_LIMIT;
+            if ((line.a + LIMIT) | (line.b + LIMIT)) as u64 >= (2 * LIMIT) as u64 {
+                return vertex_words_wide(e, px, py, vertical, w);
+            }
+            debug_assert_eq!(line.a >= 0, on_line_greater(line));
+            // -E at each pixel's first centre, less the threshold (`E >= threshold` is
+            // the greater side, as in `vertex_words_sse41`), lanes of words 0 and 1 in one
+            // register, of words 2 and 3 in the other, in wrapping 32-bit arithmetic: the
+            // value of a vertex pixel is exact ([`VERTEX_COEFFICIENT_LIMIT`]), the others'
+            // lanes are not read. About 25 instructions fewer a call than `E` at the cell
+            // in 64 bits and the check that its lanes fit 32 bits.
+            let (a, b) = (line.a as i32, line.b as i32);
+            let threshold = i32::from(line.a < 0);
+            // `px, py < CELL_LIMIT_32`: `px ONE + HALF_SUB < 2^31`.
+            let (x0, y0) = (px as i32 * ONE + HALF_SUB, py as i32 * ONE + HALF_SUB);
+            let e_cell =
+                a.wrapping_mul(x0).wrapping_add(b.wrapping_mul(y0)).wrapping_add(line.c as i32).wrapping_sub(threshold);
+            // `|a|, |b| < 2^21`: `a ONE` fits.
+            let (pixel_x, pixel_y) = (a * ONE, b * ONE);
+            let (per_lane, per_word) = if vertical { (pixel_x, pixel_y) } else { (pixel_y, pixel_x) };
+            // The word steps by a mask rather than a product, `2 per_word` as a sum of
+            // the broadcast: 4 instructions fewer, the same numbers.
+            let (per_lane, per_word) = (_mm256_set1_epi32(per_lane), _mm256_set1_epi32(per_word));
+            let steps = _mm256_add_epi32(
+                _mm256_mullo_epi32(per_lane, _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3)),
+                _mm256_and_si256(per_word, _mm256_setr_epi32(0, 0, 0, 0, -1, -1, -1, -1)),
+            );
+            let t01 = _mm256_sub_epi32(_mm256_set1_epi32(e_cell.wrapping_neg()), steps);
+            let t23 = _mm256_sub_epi32(t01, _mm256_add_epi32(per_word, per_word));
             // Aligned (as the words and masks below): the compiler splits an unaligned
             // 32-byte access in two.
             let mut t = Aligned32([0i32; 16]);
@@ -396,7 +380,7 @@ macro_rules! vertex_words_avx2_body {
             // The offsets of a pixel's 16 centres from its first (fit: `ExactLine32`; the
             // same numbers as the SSE2 path's rows), subpixels 0-3 and 8-11 in one register
             // and 4-7 and 12-15 in the other: each pack then keeps the subpixels' order.
-            let (step_x, step_y) = (_mm256_set1_epi32((line.a * SUB) as i32), _mm256_set1_epi32((line.b * SUB) as i32));
+            let (step_x, step_y) = (_mm256_set1_epi32(a * SUB), _mm256_set1_epi32(b * SUB));
             // Rows 1 and 3 are rows 0 and 2 a step further (an addition, not a product).
             let columns = _mm256_mullo_epi32(step_x, _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3));
             let rows_02 = _mm256_mullo_epi32(step_y, _mm256_setr_epi32(0, 0, 0, 0, 2, 2, 2, 2));
@@ -430,6 +414,51 @@ macro_rules! vertex_words_avx2_body {
         };
         body($e, $px, $py, $vertical, $words, $offsets)
     }};
+}
+
+/// [`vertex_words_avx2_body`] takes edges with `|a|, |b|` below this (snapped units:
+/// edges shorter than 8192 pixels each way) in wrapping 32-bit arithmetic. A vertex
+/// pixel holds an endpoint within [`VERTEX_MARGIN`] of its square, so its first
+/// subpixel centre lies within `ONE + MARGIN - ONE / 8 = 352` snapped units of the
+/// endpoint in x and in y; the line passes through the endpoint (`E = 0` there: the
+/// line through the snapped endpoints, [`ExactLine`]), so `|E|` at that centre is at
+/// most `352 (|a| + |b|) < 352 * 2^22 < 2^31`, and a sum that wrapped on the way
+/// (`E` at the cell's first pixel, the steps) ends exact. The 16 subpixel offsets
+/// (`3 * 64 (|a| + |b|)`) fit as they do for [`ExactLine32`].
+const VERTEX_COEFFICIENT_LIMIT: i64 = 1 << 21;
+const _: () = assert!(352 * 2 * VERTEX_COEFFICIENT_LIMIT + 1 < 1 << 31);
+const _: () = assert!(SNAP_ONE + VERTEX_MARGIN - SNAP_ONE / 8 == 352);
+
+/// [`vertex_words_sse41`] of words in a register, for [`vertex_words_avx2_body`]'s
+/// edges beyond its 32-bit numbers ([`VERTEX_COEFFICIENT_LIMIT`]; none on a screen
+/// the model supports, nor in `many`, default or terrain): out of line and cold, as
+/// [`vertex_words_far`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[cold]
+#[inline(never)]
+fn vertex_words_wide(
+    e: &EdgeCode,
+    px: u32,
+    py: u32,
+    vertical: bool,
+    w: std::arch::x86_64::__m256i,
+) -> std::arch::x86_64::__m256i {
+    use std::arch::x86_64::{_mm256_load_si256, _mm256_store_si256};
+    let mut words = Aligned32([0u64; 4]);
+    // SAFETY: `words` is 32 bytes aligned to 32, a register's size.
+    #[allow(unsafe_code, reason = "an aligned store into an array of a register's size")]
+    unsafe {
+        _mm256_store_si256(words.0.as_mut_ptr().cast(), w);
+    }
+    // `vertex_words_sse41` (not `vertex_words`, whose AVX2 path would come back here)
+    // takes every edge of `exact32` in a cell below `CELL_LIMIT_32`, as the caller's.
+    let out = Aligned32(vertex_words_sse41(e, px, py, vertical, words.0));
+    // SAFETY: `out` is 32 bytes aligned to 32, a register's size.
+    #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
+    unsafe {
+        _mm256_load_si256(out.0.as_ptr().cast())
+    }
 }
 
 /// [`vertex_words`] of words in a register, for [`vertex_words_avx2_body`]'s edges and
@@ -1831,9 +1860,8 @@ fn has_avx512() -> bool {
     false
 }
 
-/// What the register copies of the vertex pixels ([`vertex_words_avx2`],
-/// [`vertex_words_avx512`]) start from: the vertex pixels and the exact line's
-/// value at the cell.
+/// What the AVX-512 copy of the vertex pixels ([`vertex_words_avx512`]) starts
+/// from: the vertex pixels and the exact line's value at the cell.
 #[cfg(target_arch = "x86_64")]
 struct VertexStart {
     /// The vertex pixels, lane `4 w + l` of the words (word `w`, bits `16 l ..`): the
@@ -1987,10 +2015,9 @@ static NEAR_PIXELS: [[u16; NEAR_BITS]; 2] = {
 /// sets (tested), about 200 instructions a call against 256 for the SSE4.1 path
 /// with its detection, at terrain's 3.6 vertex pixels a call. As in [`vertex_words_avx512`], the vertex pixels come
 /// in the words' order (by [`vertex_near_avx2`]) and -E at the first centre of all 16 pixels is made at once
-/// (four registers of 64-bit lanes, each clamped to 32 bits by two compares and
-/// blends, which is the SSE2 path's clamp, then narrowed and stored; or, when no
-/// value can leave 32 bits, as on every cell of `many`, two registers of 32-bit
-/// lanes with no clamp); per vertex
+/// (two registers of 32-bit lanes in wrapping arithmetic, exact at the vertex pixels
+/// for an edge within [`VERTEX_COEFFICIENT_LIMIT`]: a longer one goes to
+/// [`vertex_words_wide`]); per vertex
 /// pixel one broadcast of its value, two 8-lane compares against the 16 centres'
 /// offsets ([`ExactLine32`]) and two packs give its set, blended into its lane of
 /// the words (held in a register) under a mask read from a table.
@@ -2736,7 +2763,7 @@ mod tests {
         use super::super::edge::ScreenFx;
         let mut next = xorshift(0x0BAD_CAFE_F00D_1234);
         let one = i64::from(SNAP_ONE);
-        let (mut long, mut sse41, mut avx2, mut avx512) = (0, 0, 0, 0);
+        let (mut long, mut wide, mut sse41, mut avx2, mut avx512) = (0, 0, 0, 0, 0);
         for k in 0..100_000 {
             let (px, py) = (4 * next(2048) as u32, 4 * next(2048) as u32);
             let mut point = |near: bool| {
@@ -2753,6 +2780,11 @@ mod tests {
             let Some(e) = EdgeCode::new(a, b, k % 2 == 0, 8192) else { continue };
             assert_eq!(e.exact.a >= 0, on_line_greater(&e.exact), "{e:?}");
             long += usize::from(!e.exact32);
+            // The 32-bit edges that the AVX2 path hands to `vertex_words_wide`.
+            let coefficients = e.exact.a.unsigned_abs().max(e.exact.b.unsigned_abs());
+            wide += usize::from(
+                e.exact32 && coefficients >= VERTEX_COEFFICIENT_LIMIT as u64 && vertex_pixels(&e.exact, px, py) != 0,
+            );
             let words: [u64; 4] = std::array::from_fn(|_| next(i64::MAX) as u64 ^ (next(2) as u64) << 63);
             for vertical in [false, true] {
                 let mut want = words;
@@ -2794,7 +2826,8 @@ mod tests {
             }
         }
         assert!(long > 1000, "{long}");
-        eprintln!("vertex_words: {sse41} cases in SSE4.1, {avx2} in AVX2, {avx512} in AVX-512");
+        assert!(wide > 1000, "{wide}");
+        eprintln!("vertex_words: {wide} wide, {sse41} cases in SSE4.1, {avx2} in AVX2, {avx512} in AVX-512");
     }
 
     /// The SSE2 row-table indices are the portable ones: V and slopes of every size
