@@ -14,9 +14,10 @@
 //!
 //! What the SPPs take of a polygon (its thinning pattern, its box as the AVX2
 //! clip's lanes, the step its fragments go to) is made once before its descent
-//! ([`SppPolygon`]), not per fragment. A small polygon's fragments first ask whether
-//! the box's pixels in the cell are all covered already, before any edge is looked
-//! up ([`Route::Avx2Small`]).
+//! ([`SppPolygon`]), not per fragment. With counting off, a fragment first asks
+//! whether the box's pixels in the cell are all covered already, before any edge is
+//! looked up, and takes no exact sets at vertex pixels already full
+//! ([`SubpixelProcessors::hidden_avx2`]).
 //!
 //! Bit layout of a pixel's set: bit `4 sy + sx`, subpixel column `sx`, row `sy` from
 //! the pixel's top-left. A cell's 16 pixels are indexed `4 y + x` likewise.
@@ -123,10 +124,9 @@ pub struct SubpixelProcessors {
     /// detected once here, a check per fragment cost some 20 instructions of the
     /// fragment's dispatch. Private, so only the detection sets it.
     avx2: bool,
-    /// The [`Route`] of a polygon larger than [`SMALL_BOX`] and of a small one: the
-    /// AVX2 ones when `avx2` and a table mode. Private, set with `avx2`; a look-up
-    /// with no branch for [`Self::polygon`].
-    routes: [Route; 2],
+    /// The [`Route`] of every polygon: [`Route::Avx2`] when `avx2` and a table mode.
+    /// Private, set with `avx2`.
+    route: Route,
 }
 
 /// What the SPPs take of a polygon, made once before its descent
@@ -149,30 +149,15 @@ pub struct SppPolygon {
 
 /// How [`SubpixelProcessors::process`] takes a polygon's fragments, chosen once a
 /// polygon ([`SubpixelProcessors::polygon`]): one test of it a fragment rather than
-/// of the processor's features and the SPP mode, and then of the polygon's size.
+/// of the processor's features and the SPP mode.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code, reason = "the AVX2 routes"))]
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code, reason = "the AVX2 route"))]
 enum Route {
     /// [`SubpixelProcessors::process_plain`]: no AVX2, or [`SppMode::Exact`].
     Plain,
     /// [`SubpixelProcessors::process_avx2`].
     Avx2,
-    /// [`SubpixelProcessors::process_avx2`] of a polygon whose box is at most
-    /// [`SMALL_BOX`] pixels each way: first asking whether the box's pixels in the
-    /// cell are all covered already ([`SubpixelProcessors::hidden_avx2`]).
-    Avx2Small,
 }
-
-/// The widest and highest box (pixels) of a polygon whose fragments are tested for
-/// being hidden before their edges are looked up ([`Route::Avx2Small`]): `many`'s
-/// triangles (a pixel or two each, their boxes widened by a pixel each way) are
-/// mostly hidden at subpixel level in cells not wholly covered, where the test saves
-/// the edges' look-ups and vertex pixels (`many` 960 x 540: `process_avx2` 819.6 →
-/// 731.1 M instructions with the test); a large polygon's fragments meet the box
-/// only at its border and are rarely hidden there (a cell wholly covered never
-/// reaches the SPPs), so they skip the test (on default 1 740 of 89 440 fragments
-/// take it, 17 of them hidden).
-const SMALL_BOX: u32 = 8;
 
 /// Sixteen words of a cell, a pixel's each (a cell's subpixel mask, a thinning
 /// pattern), aligned to 32 bytes: the AVX2 step reads and writes them as one
@@ -311,78 +296,66 @@ const _: () = assert!((ROW_Q_COUNT - 1) * (ROW_Q_COUNT + 1) < ROW_PART_WORDS);
 /// `process_avx2`'s time on default).
 #[cfg(target_arch = "x86_64")]
 macro_rules! vertex_words_avx2_body {
-    ($e:expr, $px:expr, $py:expr, $vertical:expr, $words:expr, $offsets:expr) => {{
+    ($e:expr, $px:expr, $py:expr, $vertical:expr, $words:expr, $offsets:expr, $full:expr) => {{
         let body = |e: &EdgeCode,
                     px: u32,
                     py: u32,
                     vertical: bool,
                     w: std::arch::x86_64::__m256i,
-                    offsets: std::arch::x86_64::__m128i| {
+                    offsets: std::arch::x86_64::__m128i,
+                    full: [u16; 2]| {
             if !e.exact32 || (px | py) >= CELL_LIMIT_32 {
                 return vertex_words_far(e, px, py, vertical, w);
             }
             use std::arch::x86_64::{
-                __m256i, _mm256_add_epi32, _mm256_and_si256, _mm256_blendv_epi8, _mm256_castps_si256, _mm256_castsi256_ps,
-                _mm256_castsi256_si128, _mm256_cmpgt_epi32, _mm256_cmpgt_epi64, _mm256_extracti128_si256,
-                _mm256_load_si256, _mm256_mullo_epi32, _mm256_packs_epi32, _mm256_permute4x64_epi64,
-                _mm256_set1_epi16, _mm256_set1_epi32, _mm256_set1_epi64x, _mm256_set_epi64x, _mm256_setr_epi32,
-                _mm256_shuffle_ps, _mm256_store_si256, _mm256_sub_epi32, _mm256_sub_epi64, _mm_movemask_epi8,
-                _mm_packs_epi16,
+                _mm256_add_epi32, _mm256_and_si256, _mm256_blendv_epi8, _mm256_castsi256_si128, _mm256_cmpgt_epi32,
+                _mm256_extracti128_si256, _mm256_load_si256, _mm256_mullo_epi32, _mm256_packs_epi32,
+                _mm256_set1_epi16, _mm256_set1_epi32, _mm256_setr_epi32, _mm256_store_si256, _mm256_sub_epi32,
+                _mm_movemask_epi8, _mm_packs_epi16,
             };
-            const SUB: i64 = (SNAP_ONE / 4) as i64;
+            const ONE: i32 = SNAP_ONE;
+            const HALF_SUB: i32 = SNAP_ONE / 8;
+            const SUB: i32 = SNAP_ONE / 4;
             let line = &e.exact;
-            let near = vertex_near_avx2(offsets, vertical);
-            let Some(VertexStart { near, e_cell, per_lane, per_word }) = vertex_start_at(line, px, py, vertical, near)
-            else {
+            // No exact sets for pixels whose subpixels are all covered already (`full`,
+            // in the words' order: entry 1 pixel `4 y + x` for a vertical edge, entry 0
+            // `4 x + y`): nothing of theirs is visible whatever their code.
+            let near = vertex_near_avx2(offsets, vertical) & !full[usize::from(vertical)];
+            if near == 0 {
                 return w;
-            };
-            // -E at each pixel's first centre, lanes of words 0 and 1 in one register, of
-            // words 2 and 3 in the other, each clamped to 32 bits.
-            const E_LIMIT: i64 = 1 << 30;
-            const STEP_LIMIT: i64 = 1 << 27;
-            // `|E| <= 2^30` at pixel (0, 0) and `|per_lane|, |per_word| <= 2^27`, as unsigned
-            // compares (a sum of the two steps is below `2^28` only when both are).
-            let small = (((e_cell + E_LIMIT) as u64) < (2 * E_LIMIT) as u64)
-                & ((((per_lane + STEP_LIMIT) | (per_word + STEP_LIMIT)) as u64) < (2 * STEP_LIMIT) as u64);
-            let (t01, t23) = if small {
-                // Every value (and every partial sum on the way to it) within
-                // `2^30 + 6 * 2^27 < 2^31`, so the clamp keeps it: 32-bit lanes from the
-                // start, about 20 instructions with the check against some 45 for the
-                // 64-bit lanes below. (Every cell of `many` takes this way.)
-                // The word steps by a mask rather than a product, `2 per_word` as a sum
-                // of the broadcast: 4 instructions fewer, the same numbers.
-                let (per_lane, per_word) = (_mm256_set1_epi32(per_lane as i32), _mm256_set1_epi32(per_word as i32));
-                let steps = _mm256_add_epi32(
-                    _mm256_mullo_epi32(per_lane, _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3)),
-                    _mm256_and_si256(per_word, _mm256_setr_epi32(0, 0, 0, 0, -1, -1, -1, -1)),
-                );
-                let t01 = _mm256_sub_epi32(_mm256_set1_epi32(-e_cell as i32), steps);
-                (t01, _mm256_sub_epi32(t01, _mm256_add_epi32(per_word, per_word)))
-            } else {
-                // A word's four lanes a register (every term below 2^48: no overflow).
-                let lanes = _mm256_set_epi64x(3 * per_lane, 2 * per_lane, per_lane, 0);
-                let first = _mm256_sub_epi64(_mm256_set1_epi64x(-e_cell), lanes);
-                let down = _mm256_set1_epi64x(per_word);
-                let (max, min) = (_mm256_set1_epi64x(i64::from(i32::MAX)), _mm256_set1_epi64x(i64::from(i32::MIN)));
-                let clamp = |v: __m256i| {
-                    let v = _mm256_blendv_epi8(v, max, _mm256_cmpgt_epi64(v, max));
-                    _mm256_blendv_epi8(v, min, _mm256_cmpgt_epi64(min, v))
-                };
-                let w0 = clamp(first);
-                let w1 = clamp(_mm256_sub_epi64(first, down));
-                let w2 = clamp(_mm256_sub_epi64(_mm256_sub_epi64(first, down), down));
-                let w3 = clamp(_mm256_sub_epi64(_mm256_sub_epi64(_mm256_sub_epi64(first, down), down), down));
-                // The low halves of two words' lanes as eight `i32` in lane order: the shuffle
-                // gives `a0 a1 b0 b1 | a2 a3 b2 b3`, the permute puts the pairs in order.
-                const LOW_HALVES: i32 = 0b10_00_10_00;
-                const PAIRS_IN_ORDER: i32 = 0b11_01_10_00;
-                let narrow = |a: __m256i, b: __m256i| {
-                    let (a, b) = (_mm256_castsi256_ps(a), _mm256_castsi256_ps(b));
-                    let mixed = _mm256_castps_si256(_mm256_shuffle_ps::<LOW_HALVES>(a, b));
-                    _mm256_permute4x64_epi64::<PAIRS_IN_ORDER>(mixed)
-                };
-                (narrow(w0, w1), narrow(w2, w3))
-            };
+            }
+            // The 32-bit numbers below hold for `|a|, |b| < VERTEX_COEFFICIENT_LIMIT`
+            // (every edge shorter than 8192 pixels each way); a longer one goes to
+            // `vertex_words_wide`. One unsigned compare of both coefficients.
+            const LIMIT: i64 = VERTEX_COEFFICIENT_LIMIT;
+            if ((line.a + LIMIT) | (line.b + LIMIT)) as u64 >= (2 * LIMIT) as u64 {
+                return vertex_words_wide(e, px, py, vertical, w);
+            }
+            debug_assert_eq!(line.a >= 0, on_line_greater(line));
+            // -E at each pixel's first centre, less the threshold (`E >= threshold` is
+            // the greater side, as in `vertex_words_sse41`), lanes of words 0 and 1 in one
+            // register, of words 2 and 3 in the other, in wrapping 32-bit arithmetic: the
+            // value of a vertex pixel is exact ([`VERTEX_COEFFICIENT_LIMIT`]), the others'
+            // lanes are not read. About 25 instructions fewer a call than `E` at the cell
+            // in 64 bits and the check that its lanes fit 32 bits.
+            let (a, b) = (line.a as i32, line.b as i32);
+            let threshold = i32::from(line.a < 0);
+            // `px, py < CELL_LIMIT_32`: `px ONE + HALF_SUB < 2^31`.
+            let (x0, y0) = (px as i32 * ONE + HALF_SUB, py as i32 * ONE + HALF_SUB);
+            let e_cell =
+                a.wrapping_mul(x0).wrapping_add(b.wrapping_mul(y0)).wrapping_add(line.c as i32).wrapping_sub(threshold);
+            // `|a|, |b| < 2^21`: `a ONE` fits.
+            let (pixel_x, pixel_y) = (a * ONE, b * ONE);
+            let (per_lane, per_word) = if vertical { (pixel_x, pixel_y) } else { (pixel_y, pixel_x) };
+            // The word steps by a mask rather than a product, `2 per_word` as a sum of
+            // the broadcast: 4 instructions fewer, the same numbers.
+            let (per_lane, per_word) = (_mm256_set1_epi32(per_lane), _mm256_set1_epi32(per_word));
+            let steps = _mm256_add_epi32(
+                _mm256_mullo_epi32(per_lane, _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3)),
+                _mm256_and_si256(per_word, _mm256_setr_epi32(0, 0, 0, 0, -1, -1, -1, -1)),
+            );
+            let t01 = _mm256_sub_epi32(_mm256_set1_epi32(e_cell.wrapping_neg()), steps);
+            let t23 = _mm256_sub_epi32(t01, _mm256_add_epi32(per_word, per_word));
             // Aligned (as the words and masks below): the compiler splits an unaligned
             // 32-byte access in two.
             let mut t = Aligned32([0i32; 16]);
@@ -396,7 +369,7 @@ macro_rules! vertex_words_avx2_body {
             // The offsets of a pixel's 16 centres from its first (fit: `ExactLine32`; the
             // same numbers as the SSE2 path's rows), subpixels 0-3 and 8-11 in one register
             // and 4-7 and 12-15 in the other: each pack then keeps the subpixels' order.
-            let (step_x, step_y) = (_mm256_set1_epi32((line.a * SUB) as i32), _mm256_set1_epi32((line.b * SUB) as i32));
+            let (step_x, step_y) = (_mm256_set1_epi32(a * SUB), _mm256_set1_epi32(b * SUB));
             // Rows 1 and 3 are rows 0 and 2 a step further (an addition, not a product).
             let columns = _mm256_mullo_epi32(step_x, _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3));
             let rows_02 = _mm256_mullo_epi32(step_y, _mm256_setr_epi32(0, 0, 0, 0, 2, 2, 2, 2));
@@ -428,8 +401,53 @@ macro_rules! vertex_words_avx2_body {
             }
             w
         };
-        body($e, $px, $py, $vertical, $words, $offsets)
+        body($e, $px, $py, $vertical, $words, $offsets, $full)
     }};
+}
+
+/// [`vertex_words_avx2_body`] takes edges with `|a|, |b|` below this (snapped units:
+/// edges shorter than 8192 pixels each way) in wrapping 32-bit arithmetic. A vertex
+/// pixel holds an endpoint within [`VERTEX_MARGIN`] of its square, so its first
+/// subpixel centre lies within `ONE + MARGIN - ONE / 8 = 352` snapped units of the
+/// endpoint in x and in y; the line passes through the endpoint (`E = 0` there: the
+/// line through the snapped endpoints, [`ExactLine`]), so `|E|` at that centre is at
+/// most `352 (|a| + |b|) < 352 * 2^22 < 2^31`, and a sum that wrapped on the way
+/// (`E` at the cell's first pixel, the steps) ends exact. The 16 subpixel offsets
+/// (`3 * 64 (|a| + |b|)`) fit as they do for [`ExactLine32`].
+const VERTEX_COEFFICIENT_LIMIT: i64 = 1 << 21;
+const _: () = assert!(352 * 2 * VERTEX_COEFFICIENT_LIMIT + 1 < 1 << 31);
+const _: () = assert!(SNAP_ONE + VERTEX_MARGIN - SNAP_ONE / 8 == 352);
+
+/// [`vertex_words_sse41`] of words in a register, for [`vertex_words_avx2_body`]'s
+/// edges beyond its 32-bit numbers ([`VERTEX_COEFFICIENT_LIMIT`]; none on a screen
+/// the model supports, nor in `many`, default or terrain): out of line and cold, as
+/// [`vertex_words_far`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[cold]
+#[inline(never)]
+fn vertex_words_wide(
+    e: &EdgeCode,
+    px: u32,
+    py: u32,
+    vertical: bool,
+    w: std::arch::x86_64::__m256i,
+) -> std::arch::x86_64::__m256i {
+    use std::arch::x86_64::{_mm256_load_si256, _mm256_store_si256};
+    let mut words = Aligned32([0u64; 4]);
+    // SAFETY: `words` is 32 bytes aligned to 32, a register's size.
+    #[allow(unsafe_code, reason = "an aligned store into an array of a register's size")]
+    unsafe {
+        _mm256_store_si256(words.0.as_mut_ptr().cast(), w);
+    }
+    // `vertex_words_sse41` (not `vertex_words`, whose AVX2 path would come back here)
+    // takes every edge of `exact32` in a cell below `CELL_LIMIT_32`, as the caller's.
+    let out = Aligned32(vertex_words_sse41(e, px, py, vertical, words.0));
+    // SAFETY: `out` is 32 bytes aligned to 32, a register's size.
+    #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
+    unsafe {
+        _mm256_load_si256(out.0.as_ptr().cast())
+    }
 }
 
 /// [`vertex_words`] of words in a register, for [`vertex_words_avx2_body`]'s edges and
@@ -478,8 +496,12 @@ fn vertex_words_far(
 /// [`line_index_lanes_sse41`], read with no mask or bounds check.
 #[cfg(target_arch = "x86_64")]
 macro_rules! table_code_avx2_body {
-    ($spp:expr, $frag:expr, $edges:expr, $vertex_exact:expr) => {{
-        let body = |spp: &SubpixelProcessors, frag: &Fragment, edges: &[EdgeCode]| -> std::arch::x86_64::__m256i {
+    ($spp:expr, $frag:expr, $edges:expr, $vertex_exact:expr, $full:expr) => {{
+        let body = |spp: &SubpixelProcessors,
+                    frag: &Fragment,
+                    edges: &[EdgeCode],
+                    full: [u16; 2]|
+         -> std::arch::x86_64::__m256i {
             use std::arch::x86_64::{
                 _mm256_and_si256, _mm256_load_si256, _mm256_or_si256, _mm256_permutevar8x32_epi32, _mm256_set1_epi64x,
                 _mm256_set_epi64x, _mm256_setr_epi32, _mm256_setr_epi8, _mm256_shuffle_epi8, _mm256_xor_si256,
@@ -518,7 +540,7 @@ macro_rules! table_code_avx2_body {
                 if $vertex_exact {
                     let offsets = end_offsets_sse2(&e.exact, frag.px, frag.py);
                     if near_end_cell_at_sse41(&e.exact, frag.px, frag.py, offsets) {
-                        w = vertex_words_avx2_body!(e, frag.px, frag.py, vertical, w, offsets);
+                        w = vertex_words_avx2_body!(e, frag.px, frag.py, vertical, w, offsets, full);
                     }
                 }
                 // `rows &= w | keep_rows` and `columns &= w | keep_columns`: a vertical
@@ -545,7 +567,7 @@ macro_rules! table_code_avx2_body {
             let columns = _mm256_permutevar8x32_epi32(_mm256_shuffle_epi8(columns, by_row), halves);
             _mm256_and_si256(rows, columns)
         };
-        body($spp, $frag, $edges)
+        body($spp, $frag, $edges, $full)
     }};
 }
 
@@ -750,10 +772,10 @@ impl SubpixelProcessors {
             clean: false,
             thin: Box::new(std::array::from_fn(|t| Words16(thinning(t as u8)))),
             avx2: has_avx2() && !has_avx512(),
-            routes: [Route::Plain; 2],
+            route: Route::Plain,
         };
         if s.avx2 && mode != SppMode::Exact {
-            s.routes = [Route::Avx2, Route::Avx2Small];
+            s.route = Route::Avx2;
         }
         s.clear();
         s
@@ -844,10 +866,7 @@ impl SubpixelProcessors {
     /// [`Self::process`] and [`Self::inside`] of its fragments.
     #[inline]
     pub fn polygon(&self, bbox: [u32; 4], t: u8) -> SppPolygon {
-        let [x0, x1, y0, y1] = bbox;
-        let small = x1.saturating_sub(x0).max(y1.saturating_sub(y0)) <= SMALL_BOX;
-        let route = self.routes[usize::from(small)];
-        SppPolygon { thin: self.thin[usize::from(t & 63)], lanes: BoxLanes::new(bbox), bbox, t, route }
+        SppPolygon { thin: self.thin[usize::from(t & 63)], lanes: BoxLanes::new(bbox), bbox, t, route: self.route }
     }
 
     /// The mask memory word of the cell at `(cx, cy)`.
@@ -947,9 +966,9 @@ impl SubpixelProcessors {
     ) -> [u16; 16] {
         use std::arch::x86_64::_mm256_store_si256;
         let code = if self.vertex_exact {
-            table_code_avx2_body!(self, frag, edges, true)
+            table_code_avx2_body!(self, frag, edges, true, [0; 2])
         } else {
-            table_code_avx2_body!(self, frag, edges, false)
+            table_code_avx2_body!(self, frag, edges, false, [0; 2])
         };
         let mut out = Aligned32([0u16; 16]);
         // SAFETY: `out` is 32 bytes aligned to 32, a register's size.
@@ -1056,31 +1075,15 @@ impl SubpixelProcessors {
         counters: &mut Counters,
     ) -> Visible {
         debug_assert_eq!(frag.bbox, poly.bbox, "a fragment of another polygon");
-        // The usual route tested first, on its own: a compare and a branch.
         #[cfg(target_arch = "x86_64")]
         if poly.route == Route::Avx2 {
             // SAFETY: `process_avx2` only needs the features `has_avx2` found the
-            // processor to have: `polygon` chooses an AVX2 route only for an SPP set
-            // whose `avx2` says so (its `routes` are set from the detection in `new`,
+            // processor to have: `polygon` chooses the AVX2 route only for an SPP set
+            // whose `avx2` says so (its `route` is set from the detection in `new`,
             // nowhere else).
             #[allow(unsafe_code, reason = "a function compiled for AVX2, after detection")]
             unsafe {
-                return self.process_avx2::<STATS, false>(frag, edges, poly, counters);
-            }
-        }
-        // A small polygon's fragments (counting off) in their own copy, which first
-        // asks whether they are hidden ([`Self::hidden_avx2`]): the route chosen here,
-        // not tested in the copy's entry, leaves the other copy's registers as they were.
-        #[cfg(target_arch = "x86_64")]
-        if poly.route == Route::Avx2Small {
-            // SAFETY: as above.
-            #[allow(unsafe_code, reason = "a function compiled for AVX2, after detection")]
-            unsafe {
-                return if STATS {
-                    self.process_avx2::<STATS, false>(frag, edges, poly, counters)
-                } else {
-                    self.process_avx2::<STATS, true>(frag, edges, poly, counters)
-                };
+                return self.process_avx2::<STATS>(frag, edges, poly, counters);
             }
         }
         self.process_plain::<STATS>(frag, edges, poly.t, counters)
@@ -1115,13 +1118,13 @@ impl SubpixelProcessors {
     /// chain `process` → `table_code_avx2` was two calls a fragment. A cell beyond
     /// [`CELL_LIMIT_32`] (none on a screen the model supports) goes to
     /// [`Self::process_plain`], checked once a fragment rather than at every edge's
-    /// near-end test and vertex pixels. With `PRETEST` (a small polygon's fragments,
-    /// counting off: [`Route::Avx2Small`]) a fragment whose box pixels are all
-    /// covered already returns before its edges ([`Self::hidden_avx2`]).
+    /// near-end test and vertex pixels. With counting off, a fragment whose box
+    /// pixels are all covered already returns before its edges, and the others take
+    /// no exact sets at vertex pixels already full ([`Self::hidden_avx2`]).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,bmi1")]
     #[inline(never)]
-    fn process_avx2<const STATS: bool, const PRETEST: bool>(
+    fn process_avx2<const STATS: bool>(
         &mut self,
         frag: &Fragment,
         edges: &[EdgeCode],
@@ -1134,17 +1137,22 @@ impl SubpixelProcessors {
             // once here, the checks of every edge's near end and vertex pixels fold.
             return self.process_plain::<STATS>(frag, edges, poly.t, counters);
         }
-        if PRETEST {
-            if let Some(covered) = self.hidden_avx2(frag.px, frag.py, &poly.lanes) {
-                return Visible { px: frag.px, py: frag.py, sets: [0; 16], first: 0, covered };
+        // The pixels full already, in the two orders of an edge's words (none when
+        // counting: the vertex pixels' test of them folds).
+        let full = if !STATS {
+            match self.hidden_avx2(frag.px, frag.py, &poly.lanes) {
+                Err(covered) => return Visible { px: frag.px, py: frag.py, sets: [0; 16], first: 0, covered },
+                Ok(full) => full,
             }
-        }
+        } else {
+            [0; 2]
+        };
         // Two copies of the edge loop: with and without the vertex pixels (a test an
         // edge less).
         let code = if self.vertex_exact {
-            table_code_avx2_body!(&*self, frag, edges, true)
+            table_code_avx2_body!(&*self, frag, edges, true, full)
         } else {
-            table_code_avx2_body!(&*self, frag, edges, false)
+            table_code_avx2_body!(&*self, frag, edges, false, full)
         };
         let code = _mm256_andnot_si256(box_outside_at_avx2(frag.px, frag.py, &poly.lanes), code);
         let (vis, pixels) = self.apply_avx2::<STATS>(frag.px, frag.py, code, &poly.thin);
@@ -1158,20 +1166,31 @@ impl SubpixelProcessors {
 
     /// The fragment at pixel `(px, py)` of a polygon with box lanes `lanes` when
     /// every pixel of the box in the cell is covered already (all 16 subpixels set in
-    /// the mask memory), `Some` of whether the whole cell is: whatever its code
+    /// the mask memory), `Err` of whether the whole cell is: whatever its code
     /// (clipped to the box), nothing is visible, there is no first write and the mask
     /// stays as it is, so [`Self::process_avx2`] returns that without looking up an
-    /// edge. Only in the copy of a small polygon's fragments (`PRETEST`, [`Route`]):
-    /// tested in the one copy for every fragment, the mask and the box's lanes were
-    /// kept for the mask step after the edge loop, which uses every `ymm` register,
-    /// and its words were spilled every edge (`spp-covered-box-early-out.patch` in the
-    /// session 10 notes; default +0.8 M, terrain +6.6 M instructions); the mask and
-    /// the lanes are made again after the edges.
+    /// edge. Otherwise `Ok` of the cell's full pixels, bit `4 x + y` (entry 0: the
+    /// order of a horizontal edge's words) and `4 y + x` (entry 1: a vertical
+    /// edge's), which take no exact sets at vertex pixels: their code does not
+    /// matter (`many` 960 x 540: `process_avx2` 707.7 → 599.5 M instructions).
+    /// Asked of every fragment with counting off (the counts want every fragment's
+    /// look-ups): on default 3 554 of 89 440 fragments are hidden, on `many` about
+    /// one in six. The mask and the box's lanes are made again after the edges (kept
+    /// for the mask step after the edge loop, which uses every `ymm` register, the
+    /// edge's words were spilled every edge: `spp-covered-box-early-out.patch` in the
+    /// session 10 notes). Session 14 asked it only of polygons with boxes up to 8
+    /// pixels (the `Route::Avx2Small` of its own copy): asked of every polygon, default
+    /// 27.47 → 26.07 M instructions in `process_avx2`, terrain's raster −0.6 M, `many`
+    /// at 1920 x 1080 (boxes up to 16 pixels) 741.4 → 695.2 M.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     #[inline]
-    fn hidden_avx2(&self, px: u32, py: u32, lanes: &BoxLanes) -> Option<bool> {
-        use std::arch::x86_64::{__m256i, _mm256_load_si256, _mm256_or_si256, _mm256_set1_epi16, _mm256_testc_si256};
+    fn hidden_avx2(&self, px: u32, py: u32, lanes: &BoxLanes) -> Result<[u16; 2], bool> {
+        use std::arch::x86_64::{
+            __m256i, _mm256_castsi256_si128, _mm256_cmpeq_epi16, _mm256_extracti128_si256, _mm256_load_si256,
+            _mm256_or_si256, _mm256_set1_epi16, _mm256_testc_si256, _mm_movemask_epi8, _mm_packs_epi16, _mm_setr_epi8,
+            _mm_shuffle_epi8,
+        };
         let cell = (py / CELL_SIDE) as usize * self.stride + (px / CELL_SIDE) as usize;
         let mask_ptr: *const __m256i = self.masks[cell].0.as_ptr().cast();
         // SAFETY: a cell's mask is 16 `u16` aligned to 32 bytes ([`Words16`]), the 32
@@ -1180,10 +1199,15 @@ impl SubpixelProcessors {
         let mask = unsafe { _mm256_load_si256(mask_ptr) };
         let ones = _mm256_set1_epi16(-1);
         // Every pixel outside the box or full: `!(mask | outside) & ones` is zero.
-        if _mm256_testc_si256(_mm256_or_si256(mask, box_outside_at_avx2(px, py, lanes)), ones) == 0 {
-            return None;
+        if _mm256_testc_si256(_mm256_or_si256(mask, box_outside_at_avx2(px, py, lanes)), ones) != 0 {
+            return Err(_mm256_testc_si256(mask, ones) != 0);
         }
-        Some(_mm256_testc_si256(mask, ones) != 0)
+        // A byte per pixel (`4 y + x`), all ones where the pixel is full; then the
+        // same in the order `4 x + y` (byte `4 x + y` from byte `4 y + x`).
+        let full = _mm256_cmpeq_epi16(mask, ones);
+        let bytes = _mm_packs_epi16(_mm256_castsi256_si128(full), _mm256_extracti128_si256::<1>(full));
+        let by_column = _mm_shuffle_epi8(bytes, _mm_setr_epi8(0, 4, 8, 12, 1, 5, 9, 13, 2, 6, 10, 14, 3, 7, 11, 15));
+        Ok([_mm_movemask_epi8(by_column) as u16, _mm_movemask_epi8(bytes) as u16])
     }
 
     /// [`Self::process`] of a fragment that no edge crosses (a cell wholly inside its
@@ -1831,9 +1855,8 @@ fn has_avx512() -> bool {
     false
 }
 
-/// What the register copies of the vertex pixels ([`vertex_words_avx2`],
-/// [`vertex_words_avx512`]) start from: the vertex pixels and the exact line's
-/// value at the cell.
+/// What the AVX-512 copy of the vertex pixels ([`vertex_words_avx512`]) starts
+/// from: the vertex pixels and the exact line's value at the cell.
 #[cfg(target_arch = "x86_64")]
 struct VertexStart {
     /// The vertex pixels, lane `4 w + l` of the words (word `w`, bits `16 l ..`): the
@@ -1987,10 +2010,9 @@ static NEAR_PIXELS: [[u16; NEAR_BITS]; 2] = {
 /// sets (tested), about 200 instructions a call against 256 for the SSE4.1 path
 /// with its detection, at terrain's 3.6 vertex pixels a call. As in [`vertex_words_avx512`], the vertex pixels come
 /// in the words' order (by [`vertex_near_avx2`]) and -E at the first centre of all 16 pixels is made at once
-/// (four registers of 64-bit lanes, each clamped to 32 bits by two compares and
-/// blends, which is the SSE2 path's clamp, then narrowed and stored; or, when no
-/// value can leave 32 bits, as on every cell of `many`, two registers of 32-bit
-/// lanes with no clamp); per vertex
+/// (two registers of 32-bit lanes in wrapping arithmetic, exact at the vertex pixels
+/// for an edge within [`VERTEX_COEFFICIENT_LIMIT`]: a longer one goes to
+/// [`vertex_words_wide`]); per vertex
 /// pixel one broadcast of its value, two 8-lane compares against the 16 centres'
 /// offsets ([`ExactLine32`]) and two packs give its set, blended into its lane of
 /// the words (held in a register) under a mask read from a table.
@@ -2015,7 +2037,7 @@ fn vertex_words_avx2(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64
     // SAFETY: `words` is 32 bytes aligned to 32, a register's size.
     #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
     let w = unsafe { _mm256_load_si256(words.0.as_ptr().cast()) };
-    let w = vertex_words_avx2_body!(e, px, py, vertical, w, end_offsets_sse2(&e.exact, px, py));
+    let w = vertex_words_avx2_body!(e, px, py, vertical, w, end_offsets_sse2(&e.exact, px, py), [0; 2]);
     let mut out = Aligned32([0u64; 4]);
     // SAFETY: `out` is 32 bytes aligned to 32, a register's size.
     #[allow(unsafe_code, reason = "an aligned store into an array of a register's size")]
@@ -2736,7 +2758,7 @@ mod tests {
         use super::super::edge::ScreenFx;
         let mut next = xorshift(0x0BAD_CAFE_F00D_1234);
         let one = i64::from(SNAP_ONE);
-        let (mut long, mut sse41, mut avx2, mut avx512) = (0, 0, 0, 0);
+        let (mut long, mut wide, mut sse41, mut avx2, mut avx512) = (0, 0, 0, 0, 0);
         for k in 0..100_000 {
             let (px, py) = (4 * next(2048) as u32, 4 * next(2048) as u32);
             let mut point = |near: bool| {
@@ -2753,6 +2775,11 @@ mod tests {
             let Some(e) = EdgeCode::new(a, b, k % 2 == 0, 8192) else { continue };
             assert_eq!(e.exact.a >= 0, on_line_greater(&e.exact), "{e:?}");
             long += usize::from(!e.exact32);
+            // The 32-bit edges that the AVX2 path hands to `vertex_words_wide`.
+            let coefficients = e.exact.a.unsigned_abs().max(e.exact.b.unsigned_abs());
+            wide += usize::from(
+                e.exact32 && coefficients >= VERTEX_COEFFICIENT_LIMIT as u64 && vertex_pixels(&e.exact, px, py) != 0,
+            );
             let words: [u64; 4] = std::array::from_fn(|_| next(i64::MAX) as u64 ^ (next(2) as u64) << 63);
             for vertical in [false, true] {
                 let mut want = words;
@@ -2794,7 +2821,8 @@ mod tests {
             }
         }
         assert!(long > 1000, "{long}");
-        eprintln!("vertex_words: {sse41} cases in SSE4.1, {avx2} in AVX2, {avx512} in AVX-512");
+        assert!(wide > 1000, "{wide}");
+        eprintln!("vertex_words: {wide} wide, {sse41} cases in SSE4.1, {avx2} in AVX2, {avx512} in AVX-512");
     }
 
     /// The SSE2 row-table indices are the portable ones: V and slopes of every size
@@ -2958,9 +2986,9 @@ mod tests {
     /// cells (vertex pixels, steep and long lines), boxes that clip the cell or not,
     /// masks empty, full or anything, every transparency code, both table modes,
     /// cells at a screen's ragged right and bottom borders, counting on and off.
-    /// Most boxes are small ([`SMALL_BOX`]), so with counting off the AVX2 step first
-    /// asks whether the fragment is hidden ([`SubpixelProcessors::hidden_avx2`]; a
-    /// test that says so wrongly fails here).
+    /// With counting off the AVX2 step first asks whether the fragment is hidden, and
+    /// which pixels are full ([`SubpixelProcessors::hidden_avx2`]; a test that says so
+    /// wrongly, or a vertex pixel left out that is not full, fails here).
     #[test]
     fn process_is_process_plain() {
         use super::super::gq::NO_BOX;
