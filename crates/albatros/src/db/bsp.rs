@@ -668,11 +668,20 @@ impl Bsp {
     /// The traversal from `root`; a node for which `cut` gives a piece is handed out
     /// whole as that piece ([`Piece::Subtree`] or [`Visit::Culled`]).
     /// Guests' places are visited only with `guests`.
-    fn walk(
+    fn walk(&self, root: u32, eye: DVec3, guests: bool, cut: impl Fn(u32) -> Option<Piece>, visit: impl FnMut(Piece)) {
+        if guests {
+            self.walk_with::<true>(root, eye, cut, visit);
+        } else {
+            self.walk_with::<false>(root, eye, cut, visit);
+        }
+    }
+
+    /// [`Bsp::walk`] with `guests` a constant: its tests, two or three a node, are
+    /// then compiled out (on `many`, a million nodes a frame).
+    fn walk_with<const GUESTS: bool>(
         &self,
         root: u32,
         eye: DVec3,
-        guests: bool,
         cut: impl Fn(u32) -> Option<Piece>,
         mut visit: impl FnMut(Piece),
     ) {
@@ -709,7 +718,7 @@ impl Bsp {
                     n = near;
                     continue 'enter;
                 }
-                if guests {
+                if GUESTS {
                     visit(Piece::Visit(Visit::Guests(n, near_slot)));
                 }
                 Some(rest)
@@ -717,7 +726,7 @@ impl Bsp {
             // Leave the near side of `rest` (or of the nodes on the stack).
             loop {
                 let Some(Rest { node, faces, far, far_slot }) = rest.take().or_else(|| stack.pop()) else { return };
-                if guests {
+                if GUESTS {
                     visit(Piece::Visit(Visit::Guests(node, Slot::Straddle)));
                 }
                 for f in faces {
@@ -727,7 +736,7 @@ impl Bsp {
                     n = far;
                     continue 'enter;
                 }
-                if guests {
+                if GUESTS {
                     visit(Piece::Visit(Visit::Guests(node, far_slot)));
                 }
             }

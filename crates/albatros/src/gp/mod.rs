@@ -34,7 +34,12 @@
 //! AVX2 registers (`TriangleLanes`, the projection handed to the snap in lanes,
 //! `setup::Outline::TriangleLanes`; a cached triangle, terrain's, projected in
 //! them), and a triangle's lighting choices made once for its three vertices:
-//! `many`'s GP about 980 to 870 instructions a triangle (session 14).
+//! `many`'s GP about 980 to 870 instructions a triangle (session 14). A face of
+//! the static tree goes to its own copy by its number alone
+//! ([`FrameBuilder::static_face_avx2`]; the tree walked with the guests' test a
+//! constant, [`Bsp::traverse_subtree_culled`]), and the per-frame constants of the
+//! edge codes ([`TriangleRoot`](crate::vp::edge::TriangleRoot)) and the outcodes (`View::size`) are made once a
+//! frame: about 870 to 820 (session 15).
 //!
 //! Eye coordinates: X right, Y down, Z forward (depth); screen `x = W/2 + f X/Z`,
 //! `y = H/2 + f Y/Z` with `f = (W/2) / tan(fov/2)`. The GP computes in `f64` (the
@@ -256,6 +261,10 @@ pub struct View {
     pub center: DVec2,
     /// Screen size.
     pub screen: Screen,
+    /// The screen size as `f64` (`f64::from` of each, exact), the outcodes'
+    /// borders' scales: kept rather than converted at each triangle
+    /// ([`TriangleLanes::place`]).
+    pub size: DVec2,
 }
 
 impl View {
@@ -281,6 +290,7 @@ impl View {
             focal,
             center: DVec2::new(f64::from(screen.width) * 0.5, f64::from(screen.height) * 0.5),
             screen,
+            size: DVec2::new(f64::from(screen.width), f64::from(screen.height)),
         }
     }
 
@@ -931,13 +941,8 @@ impl FrameBuilder<'_> {
     /// One step of the static tree's traversal.
     #[inline(always)]
     fn visit(&mut self, step: Visit) {
-        let f = self.f;
         match step {
-            Visit::Face(i) => {
-                let bsp = &f.db.bsp;
-                let r = &bsp.records[i as usize];
-                self.face(r, bsp, &f.view.world_to_eye, &f.view.position, &f.sun_world);
-            }
+            Visit::Face(i) => self.static_face(i),
             Visit::Guests(n, slot) => {
                 if self.places.get(n as usize).is_none_or(|&p| p >> slot as u8 & 1 != 0) {
                     self.emit_guests(n, slot);
@@ -945,6 +950,39 @@ impl FrameBuilder<'_> {
             }
             Visit::Culled(n) => self.outside_faces(n),
         }
+    }
+
+    /// [`FrameBuilder::face`] of face `i` of the static tree.
+    ///
+    /// With AVX2 by a copy that finds the face, its tree and the view's matrix,
+    /// eye and light itself ([`FrameBuilder::static_face_avx2`]): the traversal
+    /// passes one number rather than five pointers, worked out again from `self`
+    /// after each call (about 5 instructions a face on `many`).
+    #[inline(always)]
+    fn static_face(&mut self, i: u32) {
+        #[cfg(target_arch = "x86_64")]
+        if self.f.avx2 {
+            // SAFETY: `static_face_avx2` only needs AVX2 and BMI1/2, which `has_avx2`
+            // found the processor to have when `Shared::avx2` was set (nowhere else).
+            #[allow(unsafe_code, reason = "a function compiled for AVX2, after detection")]
+            unsafe {
+                return self.static_face_avx2(i);
+            }
+        }
+        let f = self.f;
+        let bsp = &f.db.bsp;
+        self.face_plain(&bsp.records[i as usize], bsp, &f.view.world_to_eye, &f.view.position, &f.sun_world);
+    }
+
+    /// [`FrameBuilder::face_avx2`] of face `i` of the static tree, seen from the
+    /// frame's eye ([`FrameBuilder::static_face`]).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline(never)]
+    fn static_face_avx2(&mut self, i: u32) {
+        let f = self.f;
+        let bsp = &f.db.bsp;
+        self.face_body::<true>(&bsp.records[i as usize], bsp, &f.view.world_to_eye, &f.view.position, &f.sun_world);
     }
 
     /// The faces of a subtree wholly outside the view volume ([`Shared::culls`]):
@@ -1476,8 +1514,8 @@ impl TriangleLanes {
             let f = _mm256_set1_pd(view.focal);
             let hx = _mm256_add_pd(_mm256_mul_pd(f, x), _mm256_mul_pd(_mm256_set1_pd(view.center.x), z));
             let hy = _mm256_add_pd(_mm256_mul_pd(f, y), _mm256_mul_pd(_mm256_set1_pd(view.center.y), z));
-            let wx = _mm256_mul_pd(_mm256_set1_pd(f64::from(view.screen.width)), z);
-            let wy = _mm256_mul_pd(_mm256_set1_pd(f64::from(view.screen.height)), z);
+            let wx = _mm256_mul_pd(_mm256_set1_pd(view.size.x), z);
+            let wy = _mm256_mul_pd(_mm256_set1_pd(view.size.y), z);
             let zero = _mm256_setzero_pd();
             macro_rules! bit {
                 ($mask:expr, $bit:expr) => {

@@ -32,6 +32,8 @@ use super::View;
 use crate::db::bsp::Plane;
 use crate::db::{Material, MaterialTexture, Rgb, Scene};
 use crate::frame::{FracLin, FrameList, FramePolygon, PolyTexture, PrimitiveKind, ScreenVertex};
+#[cfg(target_arch = "x86_64")]
+use crate::vp::edge::TriangleRoot;
 use crate::vp::edge::{EdgeCode, ScreenFx, SNAP_ONE};
 use crate::vp::gq::CellProcessors;
 
@@ -72,6 +74,10 @@ pub(crate) enum Outline<'a> {
 pub struct Setup {
     view: View,
     root_side: u32,
+    /// The root side's constants for [`EdgeCode::push_triangle_avx2_at`] (`None`
+    /// where it does not take it), made once a frame rather than at each triangle.
+    #[cfg(target_arch = "x86_64")]
+    triangle_root: Option<TriangleRoot>,
     background: Rgb,
     fog: Rgb,
     visibility: f32,
@@ -128,9 +134,12 @@ impl Setup {
     /// Set-up for a frame of `scene` seen through `view`.
     pub fn new(scene: &Scene, view: &View) -> Self {
         let root_level = CellProcessors::root_level_for(view.screen.width, view.screen.height);
+        let root_side = 4 << root_level;
         Self {
             view: *view,
-            root_side: 4 << root_level,
+            root_side,
+            #[cfg(target_arch = "x86_64")]
+            triangle_root: TriangleRoot::new(root_side),
             background: scene.env.sky,
             fog: scene.env.fog_color,
             visibility: scene.env.visibility,
@@ -300,10 +309,15 @@ impl Setup {
                 #[cfg(not(target_arch = "x86_64"))]
                 out.vertices.extend_from_slice(&[vertex(&points[0]), vertex(&points[1]), vertex(&points[2])]);
                 #[cfg(target_arch = "x86_64")]
-                // SAFETY: with `AVX2` the caller vouches for the processor.
                 #[allow(unsafe_code, reason = "an AVX2 function, its feature vouched for by the caller")]
                 let done = AVX2
-                    && unsafe { EdgeCode::push_triangle_avx2(points, inside_positive, self.root_side, &mut out.edges) };
+                    && match self.triangle_root {
+                        // SAFETY: with `AVX2` the caller vouches for the processor.
+                        Some(root) => unsafe {
+                            EdgeCode::push_triangle_avx2_at(points, inside_positive, root, &mut out.edges)
+                        },
+                        None => false,
+                    };
                 #[cfg(not(target_arch = "x86_64"))]
                 let done = false;
                 if !done {

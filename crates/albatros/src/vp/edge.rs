@@ -222,6 +222,39 @@ fn fast_bounds(points: &[(ScreenFx, ScreenFx)], root_side: u32) -> bool {
     mag >> FAST_COORD_BITS == 0 && root_side <= MAX_ROOT_SIDE && root_side.is_power_of_two()
 }
 
+/// A root side that [`EdgeCode::push_triangle_avx2`] takes (a power of two of at
+/// most [`MAX_ROOT_SIDE`] pixels) with the two constants of its float divisions
+/// that depend on it, made once ([`TriangleRoot::new`]; the GP's set-up keeps one
+/// a frame) rather than tested and worked out again at every triangle (about 13
+/// instructions a triangle: the power-of-two test, `trailing_zeros`, a shift, a
+/// conversion and a subtraction).
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TriangleRoot {
+    /// `2^(root_bits + ROOT_V_BITS)`, `n2`'s scale of `du`, as an `f64` (exact).
+    span: f64,
+    /// `EDGE_FRAC_BITS - ROOT_V_BITS - root_bits`: the slope's left shift.
+    slope_shift: i32,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl TriangleRoot {
+    /// The constants of root side `root_side` (pixels), or `None` where
+    /// [`EdgeCode::push_triangle_avx2`] does not take it (not a power of two, or
+    /// above [`MAX_ROOT_SIDE`]).
+    pub fn new(root_side: u32) -> Option<Self> {
+        if root_side > MAX_ROOT_SIDE || !root_side.is_power_of_two() {
+            return None;
+        }
+        let root_bits = root_side.trailing_zeros();
+        let scale_bits = ROOT_V_BITS - SNAP_BITS;
+        Some(Self {
+            span: (1u64 << (root_bits + SNAP_BITS + scale_bits)) as f64,
+            slope_shift: (EDGE_FRAC_BITS - ROOT_V_BITS - root_bits) as i32,
+        })
+    }
+}
+
 impl EdgeCode {
     /// The code of the line through `a` and `b` (snapped, distinct), for a root cell
     /// of `root_side = 4 * 2^L` pixels; `inside_positive` tells whether the polygon
@@ -341,6 +374,29 @@ impl EdgeCode {
         root_side: u32,
         out: &mut Vec<EdgeCode>,
     ) -> bool {
+        match TriangleRoot::new(root_side) {
+            // SAFETY: the caller vouches for AVX2.
+            Some(root) => unsafe { Self::push_triangle_avx2_at(points, inside_positive, root, out) },
+            None => false,
+        }
+    }
+
+    /// [`EdgeCode::push_triangle_avx2`] at a root side checked and its constants
+    /// made already ([`TriangleRoot`], once a frame in the GP's set-up): `true`
+    /// when the triangle lies within `FLOAT_COORD_BITS` (then its three codes are
+    /// appended), else `false`, nothing appended.
+    ///
+    /// # Safety
+    /// The processor must have AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[allow(unsafe_code, reason = "AVX2 instructions, inlined into a caller compiled for AVX2")]
+    #[inline(always)]
+    pub unsafe fn push_triangle_avx2_at(
+        points: [(ScreenFx, ScreenFx); 3],
+        inside_positive: bool,
+        root: TriangleRoot,
+        out: &mut Vec<EdgeCode>,
+    ) -> bool {
         use std::arch::x86_64::*;
         const _: () = assert!(1 << (FLOAT_COORD_BITS + 1) <= EXACT32_COEFFICIENT_LIMIT);
         const _: () = assert!(MAX_ROOT_SIDE.trailing_zeros() <= ROOT_V_BITS);
@@ -356,10 +412,7 @@ impl EdgeCode {
             _mm_or_si128(_mm_xor_si128(ax, _mm_srai_epi32::<31>(ax)), _mm_xor_si128(ay, _mm_srai_epi32::<31>(ay)));
         let mag = _mm_or_si128(mag, _mm_shuffle_epi32::<0b00_11_10_11>(mag));
         let mag = _mm_or_si128(mag, _mm_shuffle_epi32::<0b00_00_00_01>(mag));
-        if (_mm_cvtsi128_si32(mag) as u32) >> FLOAT_COORD_BITS != 0
-            || root_side > MAX_ROOT_SIDE
-            || !root_side.is_power_of_two()
-        {
+        if (_mm_cvtsi128_si32(mag) as u32) >> FLOAT_COORD_BITS != 0 {
             return false;
         }
         let zero = _mm_setzero_si128();
@@ -414,12 +467,10 @@ impl EdgeCode {
             return false;
         }
         // The floor divisions (see above): numerators, quotients, one correction.
-        let root_bits = root_side.trailing_zeros();
         let scale_bits = ROOT_V_BITS - SNAP_BITS;
         let (awf, duf, dwf) = (_mm256_cvtepi32_pd(aw), _mm256_cvtepi32_pd(du), _mm256_cvtepi32_pd(dw));
         let n1 = _mm256_mul_pd(_mm256_mul_pd(awf, duf), _mm256_set1_pd(-f64::from(1u32 << scale_bits)));
-        let span = (1u64 << (root_bits + SNAP_BITS + scale_bits)) as f64;
-        let n2 = _mm256_add_pd(n1, _mm256_mul_pd(duf, _mm256_set1_pd(span)));
+        let n2 = _mm256_add_pd(n1, _mm256_mul_pd(duf, _mm256_set1_pd(root.span)));
         macro_rules! floor_div {
             ($n:expr) => {{
                 let n = $n;
@@ -430,12 +481,11 @@ impl EdgeCode {
             }};
         }
         let (q1, q2) = (floor_div!(n1), floor_div!(n2));
-        let shift = EDGE_FRAC_BITS - ROOT_V_BITS;
         let origin = _mm256_slli_epi64::<{ (EDGE_FRAC_BITS - ROOT_V_BITS) as i32 }>(wide!(_mm_add_epi32(
             _mm_slli_epi32::<{ (ROOT_V_BITS - SNAP_BITS) as i32 }>(au),
             q1,
         )));
-        let slope = _mm256_sll_epi64(wide!(_mm_sub_epi32(q2, q1)), _mm_cvtsi32_si128((shift - root_bits) as i32));
+        let slope = _mm256_sll_epi64(wide!(_mm_sub_epi32(q2, q1)), _mm_cvtsi32_si128(root.slope_shift));
         out.reserve(3);
         let len = out.len();
         if CODE_LAYOUT.is_some() {
