@@ -14,10 +14,9 @@
 //!
 //! What the SPPs take of a polygon (its thinning pattern, its box as the AVX2
 //! clip's lanes, the step its fragments go to) is made once before its descent
-//! ([`SppPolygon`]), not per fragment. With counting off, a fragment first asks
-//! whether the box's pixels in the cell are all covered already, before any edge is
-//! looked up, and takes no exact sets at vertex pixels already full
-//! ([`SubpixelProcessors::hidden_avx2`]).
+//! ([`SppPolygon`]), not per fragment. A small polygon's fragments first ask whether
+//! the box's pixels in the cell are all covered already, before any edge is looked
+//! up ([`Route::Avx2Small`]).
 //!
 //! Bit layout of a pixel's set: bit `4 sy + sx`, subpixel column `sx`, row `sy` from
 //! the pixel's top-left. A cell's 16 pixels are indexed `4 y + x` likewise.
@@ -124,9 +123,10 @@ pub struct SubpixelProcessors {
     /// detected once here, a check per fragment cost some 20 instructions of the
     /// fragment's dispatch. Private, so only the detection sets it.
     avx2: bool,
-    /// The [`Route`] of every polygon: [`Route::Avx2`] when `avx2` and a table mode.
-    /// Private, set with `avx2`.
-    route: Route,
+    /// The [`Route`] of a polygon larger than [`SMALL_BOX`] and of a small one: the
+    /// AVX2 ones when `avx2` and a table mode. Private, set with `avx2`; a look-up
+    /// with no branch for [`Self::polygon`].
+    routes: [Route; 2],
 }
 
 /// What the SPPs take of a polygon, made once before its descent
@@ -149,15 +149,30 @@ pub struct SppPolygon {
 
 /// How [`SubpixelProcessors::process`] takes a polygon's fragments, chosen once a
 /// polygon ([`SubpixelProcessors::polygon`]): one test of it a fragment rather than
-/// of the processor's features and the SPP mode.
+/// of the processor's features and the SPP mode, and then of the polygon's size.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code, reason = "the AVX2 route"))]
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code, reason = "the AVX2 routes"))]
 enum Route {
     /// [`SubpixelProcessors::process_plain`]: no AVX2, or [`SppMode::Exact`].
     Plain,
     /// [`SubpixelProcessors::process_avx2`].
     Avx2,
+    /// [`SubpixelProcessors::process_avx2`] of a polygon whose box is at most
+    /// [`SMALL_BOX`] pixels each way: first asking whether the box's pixels in the
+    /// cell are all covered already ([`SubpixelProcessors::hidden_avx2`]).
+    Avx2Small,
 }
+
+/// The widest and highest box (pixels) of a polygon whose fragments are tested for
+/// being hidden before their edges are looked up ([`Route::Avx2Small`]): `many`'s
+/// triangles (a pixel or two each, their boxes widened by a pixel each way) are
+/// mostly hidden at subpixel level in cells not wholly covered, where the test saves
+/// the edges' look-ups and vertex pixels (`many` 960 x 540: `process_avx2` 819.6 →
+/// 731.1 M instructions with the test); a large polygon's fragments meet the box
+/// only at its border and are rarely hidden there (a cell wholly covered never
+/// reaches the SPPs), so they skip the test (on default 1 740 of 89 440 fragments
+/// take it, 17 of them hidden).
+const SMALL_BOX: u32 = 16;
 
 /// Sixteen words of a cell, a pixel's each (a cell's subpixel mask, a thinning
 /// pattern), aligned to 32 bytes: the AVX2 step reads and writes them as one
@@ -772,10 +787,10 @@ impl SubpixelProcessors {
             clean: false,
             thin: Box::new(std::array::from_fn(|t| Words16(thinning(t as u8)))),
             avx2: has_avx2() && !has_avx512(),
-            route: Route::Plain,
+            routes: [Route::Plain; 2],
         };
         if s.avx2 && mode != SppMode::Exact {
-            s.route = Route::Avx2;
+            s.routes = [Route::Avx2, Route::Avx2Small];
         }
         s.clear();
         s
@@ -866,7 +881,10 @@ impl SubpixelProcessors {
     /// [`Self::process`] and [`Self::inside`] of its fragments.
     #[inline]
     pub fn polygon(&self, bbox: [u32; 4], t: u8) -> SppPolygon {
-        SppPolygon { thin: self.thin[usize::from(t & 63)], lanes: BoxLanes::new(bbox), bbox, t, route: self.route }
+        let [x0, x1, y0, y1] = bbox;
+        let small = x1.saturating_sub(x0).max(y1.saturating_sub(y0)) <= SMALL_BOX;
+        let route = self.routes[usize::from(small)];
+        SppPolygon { thin: self.thin[usize::from(t & 63)], lanes: BoxLanes::new(bbox), bbox, t, route }
     }
 
     /// The mask memory word of the cell at `(cx, cy)`.
@@ -1075,15 +1093,31 @@ impl SubpixelProcessors {
         counters: &mut Counters,
     ) -> Visible {
         debug_assert_eq!(frag.bbox, poly.bbox, "a fragment of another polygon");
+        // The usual route tested first, on its own: a compare and a branch.
         #[cfg(target_arch = "x86_64")]
         if poly.route == Route::Avx2 {
             // SAFETY: `process_avx2` only needs the features `has_avx2` found the
-            // processor to have: `polygon` chooses the AVX2 route only for an SPP set
-            // whose `avx2` says so (its `route` is set from the detection in `new`,
+            // processor to have: `polygon` chooses an AVX2 route only for an SPP set
+            // whose `avx2` says so (its `routes` are set from the detection in `new`,
             // nowhere else).
             #[allow(unsafe_code, reason = "a function compiled for AVX2, after detection")]
             unsafe {
-                return self.process_avx2::<STATS>(frag, edges, poly, counters);
+                return self.process_avx2::<STATS, false>(frag, edges, poly, counters);
+            }
+        }
+        // A small polygon's fragments (counting off) in their own copy, which first
+        // asks whether they are hidden ([`Self::hidden_avx2`]): the route chosen here,
+        // not tested in the copy's entry, leaves the other copy's registers as they were.
+        #[cfg(target_arch = "x86_64")]
+        if poly.route == Route::Avx2Small {
+            // SAFETY: as above.
+            #[allow(unsafe_code, reason = "a function compiled for AVX2, after detection")]
+            unsafe {
+                return if STATS {
+                    self.process_avx2::<STATS, false>(frag, edges, poly, counters)
+                } else {
+                    self.process_avx2::<STATS, true>(frag, edges, poly, counters)
+                };
             }
         }
         self.process_plain::<STATS>(frag, edges, poly.t, counters)
@@ -1118,13 +1152,13 @@ impl SubpixelProcessors {
     /// chain `process` → `table_code_avx2` was two calls a fragment. A cell beyond
     /// [`CELL_LIMIT_32`] (none on a screen the model supports) goes to
     /// [`Self::process_plain`], checked once a fragment rather than at every edge's
-    /// near-end test and vertex pixels. With counting off, a fragment whose box
-    /// pixels are all covered already returns before its edges, and the others take
-    /// no exact sets at vertex pixels already full ([`Self::hidden_avx2`]).
+    /// near-end test and vertex pixels. With `PRETEST` (a small polygon's fragments,
+    /// counting off: [`Route::Avx2Small`]) a fragment whose box pixels are all
+    /// covered already returns before its edges ([`Self::hidden_avx2`]).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,bmi1")]
     #[inline(never)]
-    fn process_avx2<const STATS: bool>(
+    fn process_avx2<const STATS: bool, const PRETEST: bool>(
         &mut self,
         frag: &Fragment,
         edges: &[EdgeCode],
@@ -1137,9 +1171,9 @@ impl SubpixelProcessors {
             // once here, the checks of every edge's near end and vertex pixels fold.
             return self.process_plain::<STATS>(frag, edges, poly.t, counters);
         }
-        // The pixels full already, in the two orders of an edge's words (none when
-        // counting: the vertex pixels' test of them folds).
-        let full = if !STATS {
+        // The pixels full already, in the two orders of an edge's words (none without
+        // the pre-test: the vertex pixels' test of them folds).
+        let full = if PRETEST {
             match self.hidden_avx2(frag.px, frag.py, &poly.lanes) {
                 Err(covered) => return Visible { px: frag.px, py: frag.py, sets: [0; 16], first: 0, covered },
                 Ok(full) => full,
@@ -1172,16 +1206,13 @@ impl SubpixelProcessors {
     /// edge. Otherwise `Ok` of the cell's full pixels, bit `4 x + y` (entry 0: the
     /// order of a horizontal edge's words) and `4 y + x` (entry 1: a vertical
     /// edge's), which take no exact sets at vertex pixels: their code does not
-    /// matter (`many` 960 x 540: `process_avx2` 707.7 → 599.5 M instructions).
-    /// Asked of every fragment with counting off (the counts want every fragment's
-    /// look-ups): on default 3 554 of 89 440 fragments are hidden, on `many` about
-    /// one in six. The mask and the box's lanes are made again after the edges (kept
-    /// for the mask step after the edge loop, which uses every `ymm` register, the
-    /// edge's words were spilled every edge: `spp-covered-box-early-out.patch` in the
-    /// session 10 notes). Session 14 asked it only of polygons with boxes up to 8
-    /// pixels (the `Route::Avx2Small` of its own copy): asked of every polygon, default
-    /// 27.47 → 26.07 M instructions in `process_avx2`, terrain's raster −0.6 M, `many`
-    /// at 1920 x 1080 (boxes up to 16 pixels) 741.4 → 695.2 M.
+    /// matter (`many` 960 x 540: ~35 % of the vertex pixels, ~22 M instructions).
+    /// Only in the copy of a small polygon's fragments (`PRETEST`, [`Route`]):
+    /// tested in the one copy for every fragment, the mask and the box's lanes were
+    /// kept for the mask step after the edge loop, which uses every `ymm` register,
+    /// and its words were spilled every edge (`spp-covered-box-early-out.patch` in the
+    /// session 10 notes; default +0.8 M, terrain +6.6 M instructions); the mask and
+    /// the lanes are made again after the edges.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     #[inline]
@@ -2986,9 +3017,9 @@ mod tests {
     /// cells (vertex pixels, steep and long lines), boxes that clip the cell or not,
     /// masks empty, full or anything, every transparency code, both table modes,
     /// cells at a screen's ragged right and bottom borders, counting on and off.
-    /// With counting off the AVX2 step first asks whether the fragment is hidden, and
-    /// which pixels are full ([`SubpixelProcessors::hidden_avx2`]; a test that says so
-    /// wrongly, or a vertex pixel left out that is not full, fails here).
+    /// Most boxes are small ([`SMALL_BOX`]), so with counting off the AVX2 step first
+    /// asks whether the fragment is hidden ([`SubpixelProcessors::hidden_avx2`]; a
+    /// test that says so wrongly fails here).
     #[test]
     fn process_is_process_plain() {
         use super::super::gq::NO_BOX;
