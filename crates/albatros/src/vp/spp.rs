@@ -171,7 +171,11 @@ enum Route {
 /// 731.1 M instructions with the test); a large polygon's fragments meet the box
 /// only at its border and are rarely hidden there (a cell wholly covered never
 /// reaches the SPPs), so they skip the test (on default 1 740 of 89 440 fragments
-/// take it, 17 of them hidden).
+/// take it, 17 of them hidden). 16 rather than 8 since session 15: `many` at
+/// 1920 x 1080, where its triangles' boxes are twice as wide, `process_avx2` 741.4
+/// → 695.2 M, default unchanged, terrain −0.2 M. (The test for every polygon took
+/// default's `process_avx2` 27.47 → 26.07 M but made the raster stage slower on the
+/// wall: the mask's load then comes before every fragment's edge work.)
 const SMALL_BOX: u32 = 16;
 
 /// Sixteen words of a cell, a pixel's each (a cell's subpixel mask, a thinning
