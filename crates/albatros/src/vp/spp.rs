@@ -452,6 +452,20 @@ fn vertex_words_wide(
     vertical: bool,
     w: std::arch::x86_64::__m256i,
 ) -> std::arch::x86_64::__m256i {
+    // `vertex_words_sse41` (not `vertex_words`, whose AVX2 path would come back here)
+    // takes every edge of `exact32` in a cell below `CELL_LIMIT_32`, as the caller's.
+    words_through_memory(w, |words| vertex_words_sse41(e, px, py, vertical, words))
+}
+
+/// `f` of the four words of register `w`, back in a register (the cold vertex
+/// paths' way to their array-based copies).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn words_through_memory(
+    w: std::arch::x86_64::__m256i,
+    f: impl FnOnce([u64; 4]) -> [u64; 4],
+) -> std::arch::x86_64::__m256i {
     use std::arch::x86_64::{_mm256_load_si256, _mm256_store_si256};
     let mut words = Aligned32([0u64; 4]);
     // SAFETY: `words` is 32 bytes aligned to 32, a register's size.
@@ -459,9 +473,7 @@ fn vertex_words_wide(
     unsafe {
         _mm256_store_si256(words.0.as_mut_ptr().cast(), w);
     }
-    // `vertex_words_sse41` (not `vertex_words`, whose AVX2 path would come back here)
-    // takes every edge of `exact32` in a cell below `CELL_LIMIT_32`, as the caller's.
-    let out = Aligned32(vertex_words_sse41(e, px, py, vertical, words.0));
+    let out = Aligned32(f(words.0));
     // SAFETY: `out` is 32 bytes aligned to 32, a register's size.
     #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
     unsafe {
@@ -482,19 +494,7 @@ fn vertex_words_far(
     vertical: bool,
     w: std::arch::x86_64::__m256i,
 ) -> std::arch::x86_64::__m256i {
-    use std::arch::x86_64::{_mm256_load_si256, _mm256_store_si256};
-    let mut words = Aligned32([0u64; 4]);
-    // SAFETY: `words` is 32 bytes aligned to 32, a register's size.
-    #[allow(unsafe_code, reason = "an aligned store into an array of a register's size")]
-    unsafe {
-        _mm256_store_si256(words.0.as_mut_ptr().cast(), w);
-    }
-    let out = Aligned32(vertex_words(e, px, py, vertical, words.0));
-    // SAFETY: `out` is 32 bytes aligned to 32, a register's size.
-    #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
-    unsafe {
-        _mm256_load_si256(out.0.as_ptr().cast())
-    }
+    words_through_memory(w, |words| vertex_words(e, px, py, vertical, words))
 }
 
 /// The AVX2 fragment code before the clip to the box ([`SubpixelProcessors::edge_code`]),

@@ -2018,6 +2018,23 @@ fn from_code16_avx2(q: __m256i) -> __m256i {
     )
 }
 
+/// [`LogArith::store`] in 16-bit lanes: fine values `v` to 8-bit codes (rounded to
+/// the nearest code, ties to even; raised to code 1; 0 below the floor), for the
+/// F1 copies in 16-bit lanes ([`f1_cell16_avx2`], [`f1_half_avx2`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn store16_avx2(arith: LogArith<'_>, v: __m256i) -> __m256i {
+    let rounded = _mm256_srai_epi16::<2>(_mm256_add_epi16(
+        _mm256_add_epi16(v, _mm256_set1_epi16((FINE_PER_CODE / 2 - 1) as i16)),
+        _mm256_and_si256(_mm256_srai_epi16::<2>(v), _mm256_set1_epi16(1)),
+    ));
+    let clamped =
+        _mm256_min_epi16(_mm256_max_epi16(rounded, _mm256_set1_epi16(1)), _mm256_set1_epi16(arith.one as i16));
+    let kept = _mm256_cmpgt_epi16(v, _mm256_set1_epi16((arith.floor - 1) as i16));
+    _mm256_and_si256(clamped, kept)
+}
+
 /// Eq. 3 and 4 of a whole cell whose two halves both run them, in 16-bit lanes
 /// (one register a component for the 16 pixels, where 32-bit lanes took two): the halves' codes `words` weighed by `ln S` (the cell's sets
 /// `sets`), summed with the stored words where a pixel has a later fragment
@@ -2093,15 +2110,7 @@ unsafe fn f1_cell16_avx2(
             let t = _mm256_permute4x64_epi64::<0b11_01_10_00>(_mm256_packus_epi32(t0, t1));
             v = _mm256_blendv_epi8(_mm256_add_epi16(hi, t), v, first_lanes);
         }
-        // `LogArith::store`.
-        let rounded = _mm256_srai_epi16::<2>(_mm256_add_epi16(
-            _mm256_add_epi16(v, _mm256_set1_epi16((FINE_PER_CODE / 2 - 1) as i16)),
-            _mm256_and_si256(_mm256_srai_epi16::<2>(v), _mm256_set1_epi16(1)),
-        ));
-        let clamped =
-            _mm256_min_epi16(_mm256_max_epi16(rounded, _mm256_set1_epi16(1)), _mm256_set1_epi16(arith.one as i16));
-        let kept = _mm256_cmpgt_epi16(v, _mm256_set1_epi16((arith.floor - 1) as i16));
-        *code = _mm256_and_si256(clamped, kept);
+        *code = store16_avx2(arith, v);
     }
     // R | G << 8 in 16-bit lanes, then B above them in 32-bit lanes: rows 0 and 1
     // (the low 64 bits of each half), rows 2 and 3.
@@ -2223,15 +2232,7 @@ unsafe fn f1_half_avx2<const HALF: usize>(
             };
             v = _mm256_blendv_epi8(_mm256_add_epi16(hi, t), v, first_lanes);
         }
-        // `LogArith::store`.
-        let rounded = _mm256_srai_epi16::<2>(_mm256_add_epi16(
-            _mm256_add_epi16(v, _mm256_set1_epi16((FINE_PER_CODE / 2 - 1) as i16)),
-            _mm256_and_si256(_mm256_srai_epi16::<2>(v), _mm256_set1_epi16(1)),
-        ));
-        let clamped =
-            _mm256_min_epi16(_mm256_max_epi16(rounded, _mm256_set1_epi16(1)), _mm256_set1_epi16(arith.one as i16));
-        let kept = _mm256_cmpgt_epi16(v, _mm256_set1_epi16((arith.floor - 1) as i16));
-        *code = _mm256_and_si256(clamped, kept);
+        *code = store16_avx2(arith, v);
     }
     _mm256_or_si256(codes[0], _mm256_slli_epi16::<8>(codes[1]))
 }
