@@ -34,7 +34,7 @@ use rayon::prelude::*;
 use crate::frame::FrameList;
 use crate::model::stats::Counters;
 use crate::vp::gq::Share;
-use crate::vp::vb::{Image, VideoBuffer};
+use crate::vp::vb::{Image, Readout, VideoBuffer};
 use crate::vp::{VideoProcessor, VpConfig};
 
 /// A matrix of video processors.
@@ -58,9 +58,19 @@ pub struct Matrix {
     times: Vec<f64>,
     /// Each VP's seconds per unit of its tally, smoothed (a strip matrix).
     scales: Vec<f64>,
-    /// The matrix's threads (shared, so that [`Self::render_beside`] can run a
-    /// frame on them while it borrows the VPs).
+    /// The matrix's threads (shared, so that [`Self::step`] can run a frame on
+    /// them while it borrows the VPs).
     pool: std::sync::Arc<rayon::ThreadPool>,
+    /// The other halves of the VPs' double-buffered video memories (SYSTEM.md
+    /// 4.4, [`Self::step`]), made at the first step: each holds the frame its VP
+    /// rendered at the last step, read out while the VP renders the next.
+    back: Vec<VideoBuffer>,
+    /// The shares that frame was rendered with (a strip matrix moves its strips
+    /// as a frame starts).
+    back_shares: Vec<Share>,
+    /// Whether the VPs' memories hold a frame rendered by a step and not read out
+    /// yet.
+    rendered: bool,
 }
 
 /// A matrix shape that is not possible.
@@ -141,6 +151,9 @@ impl Matrix {
             times: Vec::new(),
             scales: Vec::new(),
             pool: Self::pool(threads)?,
+            back: Vec::new(),
+            back_shares: Vec::new(),
+            rendered: false,
         })
     }
 
@@ -182,6 +195,9 @@ impl Matrix {
             times: Vec::new(),
             scales: Vec::new(),
             pool: Self::pool(threads)?,
+            back: Vec::new(),
+            back_shares: Vec::new(),
+            rendered: false,
         })
     }
 
@@ -220,18 +236,10 @@ impl Matrix {
     /// [`Self::read_out`] into an image kept from frame to frame (its allocation
     /// reused).
     pub fn read_out_into(&mut self, image: &mut Image) {
-        // P1's 8-bit code: each tile read from its VP's memory, no gathering copy.
-        let parts: Vec<_> = self.vps.iter().map(|vp| (&vp.vb, &vp.gq.share)).collect();
         let readout = self.vps[0].config.readout;
-        if self.pool.install(|| VideoBuffer::read_out_shares_into(&parts, &readout, image)) {
-            return;
-        }
         let (first, rest) = self.vps.split_first_mut().expect("at least one VP");
-        let others: Vec<_> = rest.iter().map(|vp| (&vp.vb, &vp.gq.share)).collect();
-        self.pool.install(|| {
-            first.vb.copy_shares_from(&others);
-            first.vb.read_out_parallel_into(&first.config.readout, image)
-        })
+        let rest: Vec<_> = rest.iter().map(|vp| (&vp.vb, &vp.gq.share)).collect();
+        self.pool.install(|| read_out_memories((&mut first.vb, &first.gq.share), &rest, &readout, image));
     }
 
     /// Renders a frame list on every VP (their video memories hold the result).
@@ -243,6 +251,12 @@ impl Matrix {
     /// left unjoined ([`crate::gp::frame_stretches_into`]): every VP walks them in
     /// order ([`VideoProcessor::render_stretches`]); the same image as their join.
     pub fn render_stretches(&mut self, stretches: &[FrameList]) {
+        self.render_stretches_then(stretches, &|| ());
+    }
+
+    /// [`Self::render_stretches`], each thread running `fill` as its VP is done
+    /// and no VP is left to start ([`Self::step`]); `fill` runs at least once.
+    fn render_stretches_then(&mut self, stretches: &[FrameList], fill: &(dyn Fn() + Sync)) {
         if let Some(strips) = self.next_strips.take() {
             for (vp, (x0, x1)) in self.vps.iter_mut().zip(strips) {
                 let share = Share::strip(self.tile, x0, x1);
@@ -253,14 +267,20 @@ impl Matrix {
         let (vps, times) = (&mut self.vps, &mut self.times);
         times.resize(vps.len(), 0.0);
         let timed = self.striped;
+        let (count, started) = (vps.len(), std::sync::atomic::AtomicUsize::new(0));
         self.pool.install(|| {
             vps.par_iter_mut().zip(times.par_iter_mut()).for_each(|(vp, time)| {
+                started.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                 let start = timed.then(std::time::Instant::now);
                 vp.render_stretches(stretches);
                 if let Some(start) = start {
                     *time = start.elapsed().as_secs_f64();
                 }
-            })
+                if started.load(std::sync::atomic::Ordering::Relaxed) == count {
+                    fill();
+                }
+            });
+            fill();
         });
         if self.striped {
             self.next_strips = Some(self.balance(stretches[0].width));
@@ -340,29 +360,73 @@ impl Matrix {
         self.pool.install(f)
     }
 
-    /// Renders `frame` (as stretches, [`Self::render_stretches`]) and reads it out
-    /// into `image` while `beside` runs on the same
-    /// threads, and returns what `beside` returns: P1's double-buffered frame
-    /// memory, the GP setting up the next frame in one half while the VPs work from
-    /// the other (see [`crate::pipeline`]). The VPs render first, on every thread
-    /// (their shares are even, and one VP is one long task: anything beside them
-    /// would leave one VP late); then `beside` and the readout run together, both
-    /// cut into many small tasks that the threads take as they come, so the GP's
-    /// serial parts overlap the readout's bands instead of leaving a core idle.
-    /// The image is the one [`Self::render_frame`] and [`Self::read_out_into`] give.
-    pub fn render_beside<R: Send>(
+    /// One frame period of the machine's three stages (SYSTEM.md 1, 4.4; see
+    /// [`crate::pipeline`]), on the matrix's threads: the VPs render `frame` (as
+    /// stretches, [`Self::render_stretches`]; none: they rest) into one half of
+    /// their double-buffered video memories while the other half, the frame they
+    /// rendered at the last step, is read out into `image`, and `beside` (the GP
+    /// setting up the next frame in its half of the frame memory) runs with them.
+    /// Returns what `beside` returns, and whether `image` now holds a frame (not
+    /// when the last step rendered none). The image is the one
+    /// [`Self::render_frame`] and [`Self::read_out_into`] give for that frame.
+    ///
+    /// The VPs start first, one long task each (their shares are even); as a
+    /// thread finishes its VP, and no VP is left to start, it takes `beside`, then
+    /// the readout, both cut into many small tasks that the other thread joins when
+    /// its VP is done. The two stages beside the VPs thus fill whatever the VPs
+    /// leave: their uneven ends (the host's noise falls on one thread at a time)
+    /// and the GP's serial parts.
+    pub fn step<R: Send>(
         &mut self,
-        frame: &[FrameList],
+        frame: Option<&[FrameList]>,
         image: &mut Image,
         beside: impl FnOnce() -> R + Send,
-    ) -> R {
+    ) -> (R, bool) {
+        if self.back.len() != self.vps.len() {
+            self.back = self.vps.iter().map(|vp| VideoBuffer::new(vp.vb.width, vp.vb.height, vp.vb.mode())).collect();
+            self.back_shares = self.vps.iter().map(|vp| vp.gq.share).collect();
+        }
+        // The halves swap: the frame just rendered goes to be read out, with the
+        // shares it was rendered with (the strips move as the next frame starts).
+        let read = std::mem::take(&mut self.rendered);
+        if read {
+            for ((vp, back), share) in self.vps.iter_mut().zip(&mut self.back).zip(&mut self.back_shares) {
+                std::mem::swap(&mut vp.vb, back);
+                *share = vp.gq.share;
+            }
+        }
+        let readout = self.vps[0].config.readout;
         let pool = std::sync::Arc::clone(&self.pool);
-        // Inside the pool, the nested `install`s of `render_frame` and
-        // `read_out_into` run in place on the current worker.
-        pool.install(|| {
-            self.render_stretches(frame);
-            rayon::join(beside, || self.read_out_into(image)).0
-        })
+        // (Taken out of `self` while the VPs render, and put back after.)
+        let (mut back, back_shares) = (std::mem::take(&mut self.back), std::mem::take(&mut self.back_shares));
+        // The stages beside the VPs, each taken by the first thread free.
+        let beside = std::sync::Mutex::new(Some(beside));
+        let done = std::sync::Mutex::new(None);
+        let read_out = std::sync::Mutex::new(read.then_some((&mut back, image)));
+        // (Each taken in a statement of its own: a lock held through the stage
+        // would keep the other threads waiting on it, not helping.)
+        let fill = || {
+            let job = beside.lock().expect("no panic holding the lock").take();
+            if let Some(beside) = job {
+                let r = beside();
+                *done.lock().expect("no panic holding the lock") = Some(r);
+            }
+            let job = read_out.lock().expect("no panic holding the lock").take();
+            if let Some((back, image)) = job {
+                let (first, rest) = back.split_first_mut().expect("at least one VP");
+                let rest: Vec<_> = rest.iter().zip(&back_shares[1..]).collect();
+                read_out_memories((first, &back_shares[0]), &rest, &readout, image);
+            }
+        };
+        // Inside the pool, the nested `install` of `render_stretches` runs in place.
+        pool.install(|| match frame {
+            Some(frame) => self.render_stretches_then(frame, &fill),
+            None => fill(),
+        });
+        (self.back, self.back_shares) = (back, back_shares);
+        self.rendered = frame.is_some();
+        let r = done.into_inner().expect("no panic holding the lock").expect("`beside` ran");
+        (r, read)
     }
 
     /// Gives every VP the texture maps.
@@ -386,6 +450,27 @@ impl Matrix {
     pub fn vps(&self) -> &[VideoProcessor] {
         &self.vps
     }
+}
+
+/// Reads out a matrix's video memories, each with the share of the screen its VP
+/// rendered, into one image: P1's 8-bit code in place, each tile read from its
+/// VP's memory ([`VideoBuffer::read_out_shares_into`]); the other codes gathered
+/// into the first memory, then read out. On the current rayon pool.
+fn read_out_memories(
+    first: (&mut VideoBuffer, &Share),
+    rest: &[(&VideoBuffer, &Share)],
+    readout: &Readout,
+    image: &mut Image,
+) {
+    let mut parts = Vec::with_capacity(rest.len() + 1);
+    parts.push((&*first.0, first.1));
+    parts.extend_from_slice(rest);
+    if VideoBuffer::read_out_shares_into(&parts, readout, image) {
+        return;
+    }
+    drop(parts);
+    first.0.copy_shares_from(rest);
+    first.0.read_out_parallel_into(readout, image);
 }
 
 /// The borders of `n` strips of whole `step`-column steps of a `width`-column screen

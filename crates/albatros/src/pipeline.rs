@@ -1,16 +1,18 @@
-//! P1's double-buffered frame memory (FB) as a pipeline: the GP sets up frame `n + 1`
-//! in one half of FB while the matrix of VPs renders frame `n` from the other half
-//! (P1, SYSTEM.md 2), then the halves swap.
+//! The machine's three stages as a pipeline, with its two double-buffered
+//! memories between them: the GP sets up frame `n + 2` in one half of the frame
+//! memory (FB) while the matrix of VPs renders frame `n + 1` from the other half
+//! (P1, SYSTEM.md 1), into one half of their video memories, while the other half,
+//! frame `n`, is read out (SYSTEM.md 4.4); then both pairs of halves swap.
 //!
-//! Here both run on the matrix's threads ([`Matrix::render_beside`]): with one
-//! thread a step costs what the GP and the VPs cost one after the other; with more,
-//! the VPs render frame `n` on every thread (their shares are even), then the GP's
-//! tasks for frame `n + 1` and the readout's bands of frame `n` run together, the
-//! threads taking whichever is waiting, so the GP's serial parts and the readout
-//! overlap instead of leaving cores idle (measured in BENCHMARKS.md, session 5). A
-//! frame is shown one step after it is set up (the hardware's latency of one frame
-//! period), and its image is byte for byte the one the stages give run one after
-//! another.
+//! Here all three run on the matrix's threads ([`Matrix::step`]): with one thread a
+//! step costs what the three cost one after the other; with more, the VPs render
+//! frame `n + 1` on every thread (their shares are even), and as each thread's VP is
+//! done it takes the GP's tasks for frame `n + 2` and the readout's bands of frame
+//! `n`, which the other threads join as their VPs finish. The GP's serial parts,
+//! the readout and the VPs' uneven ends thus overlap instead of leaving cores idle
+//! (measured in BENCHMARKS.md, sessions 5 and 16). A frame is shown two steps after
+//! it is set up (the hardware's latency of two frame periods), and its image is byte
+//! for byte the one the stages give run one after another.
 
 use crate::db::{Eye, Screen};
 use crate::frame::FrameList;
@@ -18,7 +20,8 @@ use crate::gp::{self, Database, GpConfig, GpCounters, GpMemory};
 use crate::matrix::Matrix;
 use crate::vp::vb::Image;
 
-/// The GP and the matrix of VPs with the two halves of FB between them.
+/// The GP and the matrix of VPs with the two halves of FB between them (the
+/// VPs' video memories hold the two halves of the VB: [`Matrix::step`]).
 pub struct Pipeline<'a> {
     db: &'a Database,
     screen: Screen,
@@ -54,32 +57,27 @@ impl<'a> Pipeline<'a> {
     }
 
     /// One frame period: the GP sets up the frame seen from `eye` while the VPs
-    /// render the frame set up by the previous step and read it out into `image`.
-    /// Returns whether `image` now holds a frame (not on the first step, when there
-    /// was none to render yet).
+    /// render the frame set up by the previous step and the VB reads out into
+    /// `image` the frame they rendered at the previous step. Returns whether
+    /// `image` now holds a frame (not on the first two steps, before the first
+    /// frame has been set up and rendered).
     pub fn step(&mut self, eye: &Eye, image: &mut Image) -> bool {
         let Self { db, screen, gp_config, gp_memory, gp_counters, matrix, shown, next, primed } = self;
         let set_up = || gp::frame_stretches_into(db, eye, *screen, gp_config, gp_counters, gp_memory, next);
-        let rendered = *primed;
-        if rendered {
-            matrix.render_beside(shown, image, set_up);
-        } else {
-            matrix.install(set_up);
-        }
+        let ((), read) = matrix.step(primed.then_some(&shown[..]), image, set_up);
         std::mem::swap(shown, next);
         *primed = true;
-        rendered
+        read
     }
 
-    /// Renders the last frame set up (with no new one beside it) into `image`;
-    /// returns whether there was one.
+    /// A frame period with no new frame set up: the frames still in the pipeline
+    /// move on by one stage. Returns whether `image` now holds a frame: the frame
+    /// before the last at the first call after the last step, the last one at the
+    /// second, and none after that.
     pub fn finish(&mut self, image: &mut Image) -> bool {
-        if !self.primed {
-            return false;
-        }
-        self.matrix.render_beside(&self.shown, image, || ());
+        let frame = self.primed.then_some(&self.shown[..]);
         self.primed = false;
-        true
+        self.matrix.step(frame, image, || ()).1
     }
 
     /// The GP's counters of the last frame it set up.

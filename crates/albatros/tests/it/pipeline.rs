@@ -1,6 +1,7 @@
-//! Tests of the pipeline (P1's double-buffered frame memory): the GP of frame n+1
-//! beside the VPs of frame n gives, one step late, the images of the stages run one
-//! after another, whatever the thread count and matrix size.
+//! Tests of the pipeline (P1's double-buffered frame memory and the VB's
+//! double-buffered video memory): the GP of frame n+2 beside the VPs of frame n+1
+//! and the readout of frame n gives, two steps late, the images of the stages run
+//! one after another, whatever the thread count and matrix size.
 
 use albatros::db::{builtin, Eye, Screen};
 use albatros::gp::{self, Database, GpConfig, GpCounters};
@@ -11,7 +12,7 @@ use albatros::vp::vb::Image;
 use albatros::vp::{VideoProcessor, VpConfig};
 
 #[test]
-fn a_pipelined_frame_is_the_frame_of_the_stages_one_step_late() {
+fn a_pipelined_frame_is_the_frame_of_the_stages_two_steps_late() {
     let screen = Screen { width: 160, height: 120 };
     for name in ["default", "terrain"] {
         let mut scene = builtin::scene(name).unwrap();
@@ -51,19 +52,22 @@ fn a_pipelined_frame_is_the_frame_of_the_stages_one_step_late() {
             let mut pipeline = Pipeline::new(&db, screen, GpConfig { threads, ..GpConfig::default() }, matrix);
             let mut image = Image { width: 0, height: 0, pixels: Vec::new() };
             assert!(!pipeline.step(&eyes[0], &mut image), "the first step only sets a frame up");
-            for k in 1..eyes.len() {
+            assert!(!pipeline.step(&eyes[1], &mut image), "the second step renders the first frame, reads none out");
+            for k in 2..eyes.len() {
                 assert!(pipeline.step(&eyes[k], &mut image));
                 assert!(
-                    image == want[k - 1],
+                    image == want[k - 2],
                     "{name} {p}x{q} (strips: {striped}) on {threads} threads: step {k} is not frame {}",
-                    k - 1
+                    k - 2
                 );
             }
-            assert!(pipeline.finish(&mut image));
-            assert!(
-                image == want[eyes.len() - 1],
-                "{name} {p}x{q} (strips: {striped}) on {threads} threads: the last frame"
-            );
+            for last in [eyes.len() - 2, eyes.len() - 1] {
+                assert!(pipeline.finish(&mut image));
+                assert!(
+                    image == want[last],
+                    "{name} {p}x{q} (strips: {striped}) on {threads} threads: frame {last} after the last step"
+                );
+            }
             assert!(!pipeline.finish(&mut image), "nothing is left after the last frame");
         }
     }
