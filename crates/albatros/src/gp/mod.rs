@@ -41,6 +41,12 @@
 //! edge codes ([`TriangleRoot`](crate::vp::edge::TriangleRoot)) and the outcodes (`View::size`) are made once a
 //! frame: about 870 to 820 (session 15).
 //!
+//! The static tree's records and vertices are asked for a few visits before the
+//! GP reads them (`FrameBuilder::visit_ahead`, [`Bsp::prefetch_record`]): the
+//! traversal's order jumps in memory, and the VPs' pass leaves none of the
+//! database in the caches, so that a third of the GP's time went waiting on
+//! memory; the visits are made in the same order, so the frame is the same.
+//!
 //! Eye coordinates: X right, Y down, Z forward (depth); screen `x = W/2 + f X/Z`,
 //! `y = H/2 + f Y/Z` with `f = (W/2) / tan(fov/2)`. The GP computes in `f64` (the
 //! papers' GP used 32-bit floats; a modern CPU pays nothing for the extra bits) and
@@ -540,7 +546,41 @@ struct FrameBuilder<'a> {
     /// runs on several threads, kept across the tasks a thread takes in a frame
     /// (the cache's places hold for the whole frame).
     scratch: &'a mut Scratch,
+    /// The static tree's visits named but not yet made ([`FrameBuilder::visit_ahead`]).
+    ahead: Ahead,
 }
+
+/// Visits of the static tree that the traversal has named and the GP will make
+/// [`VISITS_AHEAD`] visits later: visit `k` (counting from 0) in `ring[k %
+/// VISITS_AHEAD]` until visit `k + VISITS_AHEAD` is named.
+#[derive(Clone, Copy)]
+struct Ahead {
+    ring: [Visit; VISITS_AHEAD],
+    /// The visits named so far.
+    named: usize,
+}
+
+impl Default for Ahead {
+    fn default() -> Self {
+        Self { ring: [Visit::Culled(0); VISITS_AHEAD], named: 0 }
+    }
+}
+
+/// How many visits ahead of the one it makes the GP asks for a face's record
+/// ([`Bsp::prefetch_record`]); its vertices are asked for
+/// [`VERTICES_AHEAD`] visits ahead, when the record has had time to come.
+///
+/// Why: the GP's per-frame pass reads ~6 MB of records and vertices on
+/// `default` (35 000 faces), which the VPs' pass has pushed out of the caches:
+/// fetched only when read, face after face, they held the GP up (one thread, the
+/// GP alone after 64 MB of other writes: ~2.9 ms, against ~1.8 with its data in
+/// the caches). A face takes tens of nanoseconds (a back-facing one) to a few
+/// hundred (a set-up one), a line from memory about a hundred. Asked for ahead:
+/// ~2.5 ms there, `many`'s GP (a million faces) 330-370 → 200-280 ms, for about
+/// 28 instructions a visited face (default's GP 15.1 → 16.1 M, session 16).
+const VISITS_AHEAD: usize = 16;
+/// See [`VISITS_AHEAD`] (less than it).
+const VERTICES_AHEAD: usize = 8;
 
 /// Faces per task when the GP runs on several threads (small enough to balance the
 /// load, large enough that the VPs' switch from one task's list to the next costs
@@ -707,15 +747,24 @@ fn frame_with(
     let run = |pieces: &[Piece], list: &mut FrameList, scratch: &mut Scratch| {
         let setup = Setup::new(&db.scene, &view);
         setup.header(list);
-        let mut b = FrameBuilder { f: &shared, places, setup, out: list, counters: GpCounters::default(), scratch };
+        let mut b = FrameBuilder {
+            f: &shared,
+            places,
+            setup,
+            out: list,
+            counters: GpCounters::default(),
+            scratch,
+            ahead: Ahead::default(),
+        };
         for &piece in pieces {
             match piece {
-                Piece::Visit(v) => b.visit(v),
+                Piece::Visit(v) => b.visit_ahead(v),
                 Piece::Subtree(n) => {
-                    db.bsp.traverse_subtree_culled(n, view.position, guests, |n| shared.culls(n), |v| b.visit(v))
+                    db.bsp.traverse_subtree_culled(n, view.position, guests, |n| shared.culls(n), |v| b.visit_ahead(v))
                 }
             }
         }
+        b.drain();
         b.counters
     };
     let mut c = GpCounters::default();
@@ -782,13 +831,21 @@ fn frame_with(
             let setup = Setup::new(&db.scene, &view);
             setup.header(out);
             let mut scratch = Scratch::default();
-            let mut b =
-                FrameBuilder { f: &shared, places, setup, out, counters: GpCounters::default(), scratch: &mut scratch };
+            let mut b = FrameBuilder {
+                f: &shared,
+                places,
+                setup,
+                out,
+                counters: GpCounters::default(),
+                scratch: &mut scratch,
+                ahead: Ahead::default(),
+            };
             if db.bsp.nodes.is_empty() {
-                db.bsp.traverse(view.position, |v| b.visit(v));
+                db.bsp.traverse(view.position, |v| b.visit_ahead(v));
             } else {
-                db.bsp.traverse_subtree_culled(0, view.position, guests, |n| shared.culls(n), |v| b.visit(v));
+                db.bsp.traverse_subtree_culled(0, view.position, guests, |n| shared.culls(n), |v| b.visit_ahead(v));
             }
+            b.drain();
             c = b.counters;
             b.out.polygons.len() as u64
         }
@@ -938,13 +995,60 @@ impl<'a> Shared<'a> {
 }
 
 impl FrameBuilder<'_> {
+    /// [`FrameBuilder::visit`] of `step` [`VISITS_AHEAD`] visits later (and now of
+    /// the step named that many visits before), its face's record and vertices asked
+    /// for meanwhile. The same visits in the same order ([`FrameBuilder::drain`]
+    /// makes the last ones), less the guests' places where none is attached, which
+    /// do nothing (on `default` about two a node: kept out of the ring).
+    #[inline(always)]
+    fn visit_ahead(&mut self, step: Visit) {
+        let bsp = &self.f.db.bsp;
+        match step {
+            Visit::Face(i) => bsp.prefetch_record(i),
+            Visit::Guests(n, slot) => {
+                if !self.has_guests(n, slot) {
+                    return;
+                }
+            }
+            Visit::Culled(_) => {}
+        }
+        let a = &mut self.ahead;
+        let named = a.named;
+        a.named += 1;
+        if let Some(Visit::Face(j)) = named.checked_sub(VERTICES_AHEAD).map(|k| a.ring[k % VISITS_AHEAD]) {
+            bsp.prefetch_record_vertices(j);
+        }
+        let slot = &mut a.ring[named % VISITS_AHEAD];
+        let oldest = std::mem::replace(slot, step);
+        if named >= VISITS_AHEAD {
+            self.visit(oldest);
+        }
+    }
+
+    /// Makes the visits [`FrameBuilder::visit_ahead`] still holds, in order.
+    fn drain(&mut self) {
+        let named = self.ahead.named;
+        for k in named.saturating_sub(VISITS_AHEAD)..named {
+            let step = self.ahead.ring[k % VISITS_AHEAD];
+            self.visit(step);
+        }
+        self.ahead.named = 0;
+    }
+
+    /// Whether guests are attached at `(n, slot)` this frame (or the tree has no
+    /// node `n`, the place of a tree with no nodes).
+    #[inline(always)]
+    fn has_guests(&self, n: u32, slot: Slot) -> bool {
+        self.places.get(n as usize).is_none_or(|&p| p >> slot as u8 & 1 != 0)
+    }
+
     /// One step of the static tree's traversal.
     #[inline(always)]
     fn visit(&mut self, step: Visit) {
         match step {
             Visit::Face(i) => self.static_face(i),
             Visit::Guests(n, slot) => {
-                if self.places.get(n as usize).is_none_or(|&p| p >> slot as u8 & 1 != 0) {
+                if self.has_guests(n, slot) {
                     self.emit_guests(n, slot);
                 }
             }
