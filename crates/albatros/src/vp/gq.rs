@@ -21,7 +21,9 @@
 //!   edge alone crosses it ([`band_closed`]): its codes would all be empty.
 //! - No allocation per polygon or per cell: active-edge lists live in per-level scratch
 //!   vectors owned by the [`CellProcessors`]; one pass over a cell's edges fills its
-//!   four children's lists.
+//!   four children's lists, each edge written at the end of all four and the ends of
+//!   those it crosses moved past it ([`write_children`]: no branch per child, which
+//!   the predictors could not learn; session 16, timed on the wall, not counted).
 //! - The cell's Z-order index goes down the descent (a child is `4 z + c`): the mask
 //!   memories are read and written without interleaving bits per cell.
 //! - The last-level cells go to a [`FragmentSink`]; the VP's loop implements it with a
