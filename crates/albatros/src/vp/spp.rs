@@ -1203,7 +1203,7 @@ impl SubpixelProcessors {
         // the pre-test: the vertex pixels' test of them folds).
         let full = if PRETEST {
             match self.hidden_avx2(px, py, &poly.lanes) {
-                Err(covered) => return Visible { px: px, py: py, sets: [0; 16], first: 0, covered },
+                Err(covered) => return Visible { px, py, sets: [0; 16], first: 0, covered },
                 Ok(full) => full,
             }
         } else {
