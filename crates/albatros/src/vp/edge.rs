@@ -116,7 +116,10 @@ impl ScreenFx {
 /// A value of V: pixels as `i64` with [`EDGE_FRAC_BITS`] fractional bits.
 ///
 /// Bit layout: `[63..32]` signed integer pixels, `[31..0]` fraction.
+/// Transparent, so that the GQ's active edges ([`super::gq::ActiveEdge`]) hold V1 and
+/// V2 as two adjacent `i64`, written as one SSE2 register.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+#[repr(transparent)]
 pub struct EdgeCoord(pub i64);
 
 impl EdgeCoord {

@@ -21,7 +21,9 @@
 //!   edge alone crosses it ([`band_closed`]): its codes would all be empty.
 //! - No allocation per polygon or per cell: active-edge lists live in per-level scratch
 //!   vectors owned by the [`CellProcessors`]; one pass over a cell's edges fills its
-//!   four children's lists.
+//!   four children's lists, each edge written at the end of all four and the ends of
+//!   those it crosses moved past it ([`write_children`]: no branch per child, which
+//!   the predictors could not learn; session 16, timed on the wall, not counted).
 //! - The cell's Z-order index goes down the descent (a child is `4 z + c`): the mask
 //!   memories are read and written without interleaving bits per cell.
 //! - The last-level cells go to a [`FragmentSink`]; the VP's loop implements it with a
@@ -39,8 +41,16 @@ use crate::model::stats::Counters;
 /// a horizontal), relative to the cell's first border across V (its left border for
 /// a vertical edge, its top for a horizontal one): the GQ's comparisons then need no
 /// cell origin, and a child's values are its parent's less half a cell or not.
+///
+/// In C layout, V1 and V2 first (one SSE2 register), the index and kind after them
+/// (one word): [`write_children`] writes a child's copy as those two stores.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(C)]
 pub struct ActiveEdge {
+    /// V1: V at the cell's first border, relative to the cell.
+    pub v1: EdgeCoord,
+    /// V2: V at the cell's second border, relative to the cell.
+    pub v2: EdgeCoord,
     /// Index into the polygon's edge list.
     pub edge: u32,
     /// TG and LR as the high bits of an address of [`CHILD_CODES`]: bit
@@ -48,11 +58,14 @@ pub struct ActiveEdge {
     /// lies on the side of greater V), bit [`KIND_DOWN`] for `V1 > V2`. One word, so that a child's copy moves the
     /// edge's index and kind together.
     kind: u32,
-    /// V1: V at the cell's first border, relative to the cell.
-    pub v1: EdgeCoord,
-    /// V2: V at the cell's second border, relative to the cell.
-    pub v2: EdgeCoord,
 }
+
+// The layout [`write_children`]'s stores rest on.
+const _: () = assert!(std::mem::offset_of!(ActiveEdge, v1) == 0);
+const _: () = assert!(std::mem::offset_of!(ActiveEdge, v2) == 8);
+const _: () = assert!(std::mem::offset_of!(ActiveEdge, edge) == 16);
+const _: () = assert!(std::mem::offset_of!(ActiveEdge, kind) == 20);
+const _: () = assert!(std::mem::size_of::<ActiveEdge>() == 24);
 
 /// [`ActiveEdge`]'s kind bit for TG = [`Tg::Vertical`].
 const KIND_VERTICAL: u32 = 1 << 8;
@@ -1096,31 +1109,18 @@ impl CellProcessors {
         // CI in bits 0-3, CRI in bits 4-7, ANDed over the edges.
         let mut codes_all = 0xFFu32;
         let open = u32::from(!m & 0xF);
-        // The V origin of child `c` less the cell's: half a cell for the children
-        // across V's lines from the first border, by TG (`c = dx + 2 dy`).
-        let across_horizontal = [0, 0, half, half];
-        let across_vertical = [0, half, 0, half];
         let thresholds = ChildThresholds::new(half);
-        for a in active {
+        for (i, a) in active.iter().enumerate() {
             let code = child_codes(a.v1.0, a.v2.0, &thresholds, a.kind);
             codes_all &= code.codes;
             if !STATS && codes_all >> 4 & open == 0 {
                 // Every open child is OUT: no child to descend into, none IN.
                 break;
             }
-            let mut crossed = code.codes >> 8 & open;
-            while crossed != 0 {
-                let c = crossed.trailing_zeros() as usize;
-                crossed &= crossed - 1;
-                // The child's place along V's lines (its half of the stretch) and
-                // across them (its V origin half a cell further or not).
-                let vertical = a.kind & KIND_VERTICAL != 0;
-                let along = if vertical { c >> 1 } else { c & 1 };
-                let (v1, v2) = if along == 0 { (a.v1.0, code.vm) } else { (code.vm, a.v2.0) };
-                let shift = if vertical { across_vertical[c] } else { across_horizontal[c] };
-                children[ends[c]] = ActiveEdge { v1: EdgeCoord(v1 - shift), v2: EdgeCoord(v2 - shift), ..*a };
-                ends[c] += 1;
-            }
+            // Before this edge at most the `i` edges before it went on a list, and
+            // `len <= stride`: `ends[c] < (c + 1) stride`, in child `c`'s list.
+            debug_assert!(i < stride && ends.iter().enumerate().all(|(c, &end)| end <= c * stride + i));
+            write_children(children, &mut ends, a, code.vm, half, code.codes >> 8 & open);
         }
         let (ci_all, cri_all) = (codes_all as u8 & 0xF, (codes_all >> 4) as u8 & 0xF);
         let mem_on = self.masks.has(child_level);
@@ -1233,6 +1233,81 @@ impl CellProcessors {
             let (x, y) = (cell.x * 2 + (c & 1), cell.y * 2 + (c >> 1));
             self.fill(Cell { level: child_level, x, y }, 4 * z + c as usize, opaque, spp);
         }
+    }
+}
+
+/// Writes edge `a` (of a cell of half side `half`, its midpoint V `vm`) at the end
+/// of each of the cell's four children's lists in `children` (child `c`'s at
+/// `ends[c]`, which must lie below `(c + 1) stride`, `stride` a quarter of
+/// `children`), and moves the ends of the lists of the children it crosses
+/// (`crossed`, bit `c = dx + 2 dy`) past it: a list past its end is never read. No
+/// branch per child, where the loop over the crossed children (1 to 3, as the edge's
+/// line runs) ended or went on by data no predictor learns, and the ends stay in
+/// registers (indexed by the child, each end's load waited on the last edge's store
+/// of it). A child's stretch is the first half along V's lines `(V1, Vm)` or the
+/// second `(Vm, V2)`, its V origin the cell's or half a cell further across them:
+/// child 0 takes the first half unshifted and child 3 the second shifted, whatever
+/// the TG; children 1 and 2 the second half unshifted and the first shifted
+/// (horizontal TG: `c & 1` along) or the other way round (vertical: `c >> 1` along).
+/// In SSE2 on x86-64: V1 and V2 in one register, the TG's swap of children 1 and 2
+/// by a mask, each copy two stores; elsewhere by its definition (tested against each
+/// other).
+#[inline(always)]
+fn write_children(
+    children: &mut [ActiveEdge],
+    ends: &mut [usize; 4],
+    a: &ActiveEdge,
+    vm: i64,
+    half: i64,
+    crossed: u32,
+) {
+    debug_assert!(ends.iter().enumerate().all(|(c, &end)| end < (c + 1) * (children.len() / 4)));
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::*;
+        let tail = u64::from(a.edge) | u64::from(a.kind) << 32;
+        // SAFETY: SSE2 operations (x86-64's baseline); each copy's stores write 24
+        // bytes at entry `ends[c]` of `children`, in child `c`'s list by the
+        // caller's bound, as [`ActiveEdge`]'s C layout places V1, V2 (16 bytes) and
+        // the index and kind (8, little-endian: the index first).
+        #[allow(unsafe_code, reason = "SSE2 stores of a child's copy into its list, bounded by the caller")]
+        unsafe {
+            let v = _mm_set_epi64x(a.v2.0, a.v1.0);
+            let m = _mm_set1_epi64x(vm);
+            let h = _mm_set1_epi64x(half);
+            let first = _mm_unpacklo_epi64(v, m);
+            let second = _mm_unpackhi_epi64(m, v);
+            let first_shifted = _mm_sub_epi64(first, h);
+            let second_shifted = _mm_sub_epi64(second, h);
+            let vertical = _mm_set1_epi64x(-i64::from(a.kind & KIND_VERTICAL != 0));
+            let swap = _mm_and_si128(_mm_xor_si128(first_shifted, second), vertical);
+            let copies = [first, _mm_xor_si128(second, swap), _mm_xor_si128(first_shifted, swap), second_shifted];
+            let base = children.as_mut_ptr();
+            for (c, copy) in copies.into_iter().enumerate() {
+                let at = base.add(ends[c]);
+                _mm_storeu_si128(at.cast(), copy);
+                at.cast::<u64>().add(2).write(tail);
+            }
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    write_children_plain(children, ends, a, vm, half);
+    for (c, end) in ends.iter_mut().enumerate() {
+        *end += (crossed >> c & 1) as usize;
+    }
+}
+
+/// [`write_children`]' copies by their definition: the child's half along V's lines,
+/// its origin half a cell further across them or not, by TG.
+#[cfg_attr(target_arch = "x86_64", allow(dead_code, reason = "the other targets' copy, tested against the SSE2 one"))]
+#[inline(always)]
+fn write_children_plain(children: &mut [ActiveEdge], ends: &[usize; 4], a: &ActiveEdge, vm: i64, half: i64) {
+    for (c, &end) in ends.iter().enumerate() {
+        let vertical = a.kind & KIND_VERTICAL != 0;
+        let (along, across) = if vertical { (c >> 1, c & 1) } else { (c & 1, c >> 1) };
+        let (v1, v2) = if along == 0 { (a.v1.0, vm) } else { (vm, a.v2.0) };
+        let shift = if across == 0 { 0 } else { half };
+        children[end] = ActiveEdge { v1: EdgeCoord(v1 - shift), v2: EdgeCoord(v2 - shift), ..*a };
     }
 }
 
@@ -1881,6 +1956,32 @@ mod tests {
                     assert_eq!(plain, want, "plain: d1 {d1}, d2 {d2}, half {half}, {tg:?}, lr {lr}");
                 }
             }
+        }
+    }
+
+    /// [`write_children`] writes each child's copy as [`write_children_plain`] does
+    /// (the copies of both TG, LR and slopes, random V and ends) and moves only the
+    /// crossed children's ends, leaving every other entry as it was.
+    #[test]
+    fn child_writes_are_the_plain_ones() {
+        let mut next = xorshift(0x2545_F491_4F6C_DD1D);
+        let stride = 8;
+        let sentinel = ActiveEdge { edge: u32::MAX, kind: u32::MAX, v1: EdgeCoord(-1), v2: EdgeCoord(-1) };
+        for _ in 0..20_000 {
+            let half = 1i64 << (EDGE_FRAC_BITS + 1 + next(12) as u32);
+            let mut value = || next(1 << 44) as i64 - (1 << 43);
+            let (v1, v2, vm) = (value(), value(), value());
+            let kind = next(8) as u32 * KIND_VERTICAL;
+            let a = ActiveEdge { edge: next(1000) as u32, kind, v1: EdgeCoord(v1), v2: EdgeCoord(v2) };
+            let ends: [usize; 4] = std::array::from_fn(|c| c * stride + next(stride as u64) as usize);
+            let crossed = next(16) as u32;
+            let (mut fast, mut plain) = (vec![sentinel; 4 * stride], vec![sentinel; 4 * stride]);
+            let mut fast_ends = ends;
+            write_children(&mut fast, &mut fast_ends, &a, vm, half, crossed);
+            write_children_plain(&mut plain, &ends, &a, vm, half);
+            assert_eq!(fast, plain, "{a:?} vm {vm} half {half}");
+            let want: [usize; 4] = std::array::from_fn(|c| ends[c] + (crossed >> c & 1) as usize);
+            assert_eq!(fast_ends, want);
         }
     }
 

@@ -18,10 +18,18 @@
 //! the box's pixels in the cell are all covered already, before any edge is looked
 //! up ([`Route::Avx2Small`]).
 //!
+//! On the AVX2 step's critical path (perf, session 16): values just stored narrowly
+//! and loaded wide miss the store forwarding, so the step takes the fragment's pixel
+//! by value, not the two `u32` of [`Fragment`] as one 8-byte load, and its cold
+//! vertex copies keep their words in arrays of their own
+//! ([`SubpixelProcessors::process_avx2`], [`words_through_memory`]).
+//!
 //! Bit layout of a pixel's set: bit `4 sy + sx`, subpixel column `sx`, row `sy` from
 //! the pixel's top-left. A cell's 16 pixels are indexed `4 y + x` likewise.
 
 use super::edge::{EdgeCode, ExactLine, Tg, EDGE_FRAC_BITS, EXACT32_END_LIMIT, SNAP_ONE};
+#[cfg(target_arch = "x86_64")]
+use super::gq::{ActiveEdge, ONE_CELL};
 use super::gq::{Fragment, Share};
 use super::tables::{SppMode, SppRowTable, ROW_PART_WORDS, ROW_Q_COUNT, ROW_Q_MAX, ROW_Q_MIN, SPP_V_BITS};
 #[cfg(test)]
@@ -324,7 +332,7 @@ macro_rules! vertex_words_avx2_body {
                     offsets: std::arch::x86_64::__m128i,
                     full: [u16; 2]| {
             if !e.exact32 || (px | py) >= CELL_LIMIT_32 {
-                return vertex_words_far(e, px, py, vertical, w);
+                return words_through_memory(w, |words| vertex_words_far(e, px, py, vertical, words));
             }
             use std::arch::x86_64::{
                 _mm256_add_epi32, _mm256_and_si256, _mm256_blendv_epi8, _mm256_castsi256_si128, _mm256_cmpgt_epi32,
@@ -348,7 +356,7 @@ macro_rules! vertex_words_avx2_body {
             // `vertex_words_wide`. One unsigned compare of both coefficients.
             const LIMIT: i64 = VERTEX_COEFFICIENT_LIMIT;
             if ((line.a + LIMIT) | (line.b + LIMIT)) as u64 >= (2 * LIMIT) as u64 {
-                return vertex_words_wide(e, px, py, vertical, w);
+                return words_through_memory(w, |words| vertex_words_wide(e, px, py, vertical, words));
             }
             debug_assert_eq!(line.a >= 0, on_line_greater(line));
             // -E at each pixel's first centre, less the threshold (`E >= threshold` is
@@ -437,64 +445,62 @@ const VERTEX_COEFFICIENT_LIMIT: i64 = 1 << 21;
 const _: () = assert!(352 * 2 * VERTEX_COEFFICIENT_LIMIT + 1 < 1 << 31);
 const _: () = assert!(SNAP_ONE + VERTEX_MARGIN - SNAP_ONE / 8 == 352);
 
-/// [`vertex_words_sse41`] of words in a register, for [`vertex_words_avx2_body`]'s
-/// edges beyond its 32-bit numbers ([`VERTEX_COEFFICIENT_LIMIT`]; none on a screen
-/// the model supports, nor in `many`, default or terrain): out of line and cold, as
-/// [`vertex_words_far`].
+/// [`vertex_words_sse41`] for [`vertex_words_avx2_body`]'s edges beyond its 32-bit
+/// numbers ([`VERTEX_COEFFICIENT_LIMIT`]; none on a screen the model supports, nor in
+/// `many`, default or terrain): out of line and cold, as [`vertex_words_far`], its
+/// words through [`words_through_memory`].
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[cold]
 #[inline(never)]
-fn vertex_words_wide(
-    e: &EdgeCode,
-    px: u32,
-    py: u32,
-    vertical: bool,
-    w: std::arch::x86_64::__m256i,
-) -> std::arch::x86_64::__m256i {
+fn vertex_words_wide(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64; 4]) -> [u64; 4] {
     // `vertex_words_sse41` (not `vertex_words`, whose AVX2 path would come back here)
     // takes every edge of `exact32` in a cell below `CELL_LIMIT_32`, as the caller's.
-    words_through_memory(w, |words| vertex_words_sse41(e, px, py, vertical, words))
+    vertex_words_sse41(e, px, py, vertical, words)
 }
 
-/// `f` of the four words of register `w`, back in a register (the cold vertex
-/// paths' way to their array-based copies).
+/// `f` of the four words of register `w`, back in a register: the cold vertex paths'
+/// way to their array-based copies, written at their call sites in
+/// [`vertex_words_avx2_body`]. The call's arrays are its own: when the cold functions
+/// took and gave the register (`__m256i` goes by memory between functions), the
+/// caller's words were the call's result in memory on every path, so each edge of
+/// [`SubpixelProcessors::process_avx2`] stored its words and loaded them back before
+/// its rows and columns (some 6 % of the function's samples on default, at the load).
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[inline]
+#[inline(always)]
 fn words_through_memory(
     w: std::arch::x86_64::__m256i,
     f: impl FnOnce([u64; 4]) -> [u64; 4],
 ) -> std::arch::x86_64::__m256i {
-    use std::arch::x86_64::{_mm256_load_si256, _mm256_store_si256};
-    let mut words = Aligned32([0u64; 4]);
-    // SAFETY: `words` is 32 bytes aligned to 32, a register's size.
-    #[allow(unsafe_code, reason = "an aligned store into an array of a register's size")]
+    use std::arch::x86_64::__m256i;
+    // SAFETY: `__m256i` and `[u64; 4]` are both 32 bytes of integers, any bits valid.
+    #[allow(unsafe_code, reason = "a register's bits as the array of its words and back")]
     unsafe {
-        _mm256_store_si256(words.0.as_mut_ptr().cast(), w);
-    }
-    let out = Aligned32(f(words.0));
-    // SAFETY: `out` is 32 bytes aligned to 32, a register's size.
-    #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
-    unsafe {
-        _mm256_load_si256(out.0.as_ptr().cast())
+        std::mem::transmute::<[u64; 4], __m256i>(f(std::mem::transmute::<__m256i, [u64; 4]>(w)))
     }
 }
 
-/// [`vertex_words`] of words in a register, for [`vertex_words_avx2_body`]'s edges and
-/// cells beyond its 32-bit numbers (rare: none on `many`, default or terrain).
+/// [`vertex_words`] for [`vertex_words_avx2_body`]'s edges and cells beyond its 32-bit
+/// numbers (rare: none on `many`, default or terrain), its words through
+/// [`words_through_memory`].
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[cold]
 #[inline(never)]
-fn vertex_words_far(
-    e: &EdgeCode,
-    px: u32,
-    py: u32,
-    vertical: bool,
-    w: std::arch::x86_64::__m256i,
-) -> std::arch::x86_64::__m256i {
-    words_through_memory(w, |words| vertex_words(e, px, py, vertical, words))
+fn vertex_words_far(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64; 4]) -> [u64; 4] {
+    vertex_words(e, px, py, vertical, words)
+}
+
+/// Whether [`vertex_words_avx2_body`] would hand the edge `e` at the cell at pixel
+/// `(px, py)` to a cold copy ([`vertex_words_far`], [`vertex_words_wide`]): the AVX2
+/// fragment code asks first and takes such an edge to [`vertex_words_far`] (the same
+/// words by [`vertex_words`]), so that the body's own cold calls fold there.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn vertex_words_cold(e: &EdgeCode, px: u32, py: u32) -> bool {
+    const LIMIT: i64 = VERTEX_COEFFICIENT_LIMIT;
+    let line = &e.exact;
+    !e.exact32 || (px | py) >= CELL_LIMIT_32 || ((line.a + LIMIT) | (line.b + LIMIT)) as u64 >= (2 * LIMIT) as u64
 }
 
 /// The AVX2 fragment code before the clip to the box ([`SubpixelProcessors::edge_code`]),
@@ -515,9 +521,11 @@ fn vertex_words_far(
 /// [`line_index_lanes_sse41`], read with no mask or bounds check.
 #[cfg(target_arch = "x86_64")]
 macro_rules! table_code_avx2_body {
-    ($spp:expr, $frag:expr, $edges:expr, $vertex_exact:expr, $full:expr) => {{
+    ($spp:expr, $px:expr, $py:expr, $active:expr, $edges:expr, $vertex_exact:expr, $full:expr) => {{
         let body = |spp: &SubpixelProcessors,
-                    frag: &Fragment,
+                    px: u32,
+                    py: u32,
+                    active: &[ActiveEdge],
                     edges: &[EdgeCode],
                     full: [u16; 2]|
          -> std::arch::x86_64::__m256i {
@@ -530,7 +538,7 @@ macro_rules! table_code_avx2_body {
             let (mut rows, mut columns) = (ones, ones);
             // Both parts looked up once a fragment rather than once an edge.
             let (part_v, part_h) = (spp.row_table.part(Tg::Vertical), spp.row_table.part(Tg::Horizontal));
-            for a in frag.active {
+            for a in active {
                 let e = &edges[a.edge as usize];
                 let vertical = e.tg == Tg::Vertical;
                 let index = line_index_lanes_sse41(a.v1.0, e.slope.0);
@@ -553,15 +561,6 @@ macro_rules! table_code_avx2_body {
                 #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
                 let flip = unsafe { _mm256_load_si256(FLIP.0[usize::from(e.lr)].as_ptr().cast()) };
                 let mut w = _mm256_xor_si256(read, flip);
-                // The pixels of this cell near an endpoint of the edge, where the exact
-                // rule replaces the table. The endpoints' offsets from the cell serve
-                // both the test and the vertex pixels.
-                if $vertex_exact {
-                    let offsets = end_offsets_sse2(&e.exact, frag.px, frag.py);
-                    if near_end_cell_at_sse41(&e.exact, frag.px, frag.py, offsets) {
-                        w = vertex_words_avx2_body!(e, frag.px, frag.py, vertical, w, offsets, full);
-                    }
-                }
                 // `rows &= w | keep_rows` and `columns &= w | keep_columns`: a vertical
                 // edge keeps the columns, a horizontal one the rows.
                 let keep = &KEEP.0[usize::from(vertical)];
@@ -570,6 +569,24 @@ macro_rules! table_code_avx2_body {
                 #[allow(unsafe_code, reason = "aligned loads of arrays of a register's size")]
                 let (keep_rows, keep_columns) =
                     unsafe { (_mm256_load_si256(keep[0].as_ptr().cast()), _mm256_load_si256(keep[1].as_ptr().cast())) };
+                // The pixels of this cell near an endpoint of the edge, where the exact
+                // rule replaces the table. The endpoints' offsets from the cell serve
+                // both the test and the vertex pixels.
+                if $vertex_exact {
+                    let offsets = end_offsets_sse2(&e.exact, px, py);
+                    if near_end_cell_at_sse41(&e.exact, px, py, offsets) {
+                        if vertex_words_cold(e, px, py) {
+                            // The cold copy's words ANDed in on their own path: merged
+                            // with the others into `w`, the words of every edge went
+                            // through the call's result in memory ([`words_through_memory`]).
+                            let w = words_through_memory(w, |words| vertex_words_far(e, px, py, vertical, words));
+                            rows = _mm256_and_si256(rows, _mm256_or_si256(w, keep_rows));
+                            columns = _mm256_and_si256(columns, _mm256_or_si256(w, keep_columns));
+                            continue;
+                        }
+                        w = vertex_words_avx2_body!(e, px, py, vertical, w, offsets, full);
+                    }
+                }
                 rows = _mm256_and_si256(rows, _mm256_or_si256(w, keep_rows));
                 columns = _mm256_and_si256(columns, _mm256_or_si256(w, keep_columns));
             }
@@ -586,7 +603,7 @@ macro_rules! table_code_avx2_body {
             let columns = _mm256_permutevar8x32_epi32(_mm256_shuffle_epi8(columns, by_row), halves);
             _mm256_and_si256(rows, columns)
         };
-        body($spp, $frag, $edges, $full)
+        body($spp, $px, $py, $active, $edges, $full)
     }};
 }
 
@@ -988,9 +1005,9 @@ impl SubpixelProcessors {
     ) -> [u16; 16] {
         use std::arch::x86_64::_mm256_store_si256;
         let code = if self.vertex_exact {
-            table_code_avx2_body!(self, frag, edges, true, [0; 2])
+            table_code_avx2_body!(self, frag.px, frag.py, frag.active, edges, true, [0; 2])
         } else {
-            table_code_avx2_body!(self, frag, edges, false, [0; 2])
+            table_code_avx2_body!(self, frag.px, frag.py, frag.active, edges, false, [0; 2])
         };
         let mut out = Aligned32([0u16; 16]);
         // SAFETY: `out` is 32 bytes aligned to 32, a register's size.
@@ -1106,7 +1123,7 @@ impl SubpixelProcessors {
             // nowhere else).
             #[allow(unsafe_code, reason = "a function compiled for AVX2, after detection")]
             unsafe {
-                return self.process_avx2::<STATS, false>(frag, edges, poly, counters);
+                return self.process_avx2::<STATS, false>(frag.px, frag.py, frag.active, edges, poly, counters);
             }
         }
         // A small polygon's fragments (counting off) in their own copy, which first
@@ -1118,9 +1135,9 @@ impl SubpixelProcessors {
             #[allow(unsafe_code, reason = "a function compiled for AVX2, after detection")]
             unsafe {
                 return if STATS {
-                    self.process_avx2::<STATS, false>(frag, edges, poly, counters)
+                    self.process_avx2::<STATS, false>(frag.px, frag.py, frag.active, edges, poly, counters)
                 } else {
-                    self.process_avx2::<STATS, true>(frag, edges, poly, counters)
+                    self.process_avx2::<STATS, true>(frag.px, frag.py, frag.active, edges, poly, counters)
                 };
             }
         }
@@ -1158,28 +1175,35 @@ impl SubpixelProcessors {
     /// [`Self::process_plain`], checked once a fragment rather than at every edge's
     /// near-end test and vertex pixels. With `PRETEST` (a small polygon's fragments,
     /// counting off: [`Route::Avx2Small`]) a fragment whose box pixels are all
-    /// covered already returns before its edges ([`Self::hidden_avx2`]).
+    /// covered already returns before its edges ([`Self::hidden_avx2`]). The
+    /// fragment's pixel `(px, py)` and its edges `active` come by value: given the
+    /// [`Fragment`], the step read its `px` and `py`, stored by the descent as two
+    /// 4-byte fields, as one 8-byte load, which no store forwarded (6.7 % of the
+    /// function's samples on default, session 16).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,bmi1")]
     #[inline(never)]
     fn process_avx2<const STATS: bool, const PRETEST: bool>(
         &mut self,
-        frag: &Fragment,
+        px: u32,
+        py: u32,
+        active: &[ActiveEdge],
         edges: &[EdgeCode],
         poly: &SppPolygon,
         counters: &mut Counters,
     ) -> Visible {
         use std::arch::x86_64::_mm256_andnot_si256;
-        if (frag.px | frag.py) >= CELL_LIMIT_32 {
+        if (px | py) >= CELL_LIMIT_32 {
             // Beyond the 32-bit vertex paths (no screen the model supports): checked
             // once here, the checks of every edge's near end and vertex pixels fold.
-            return self.process_plain::<STATS>(frag, edges, poly.t, counters);
+            let frag = Fragment { px, py, active, cells: ONE_CELL, bbox: poly.bbox };
+            return self.process_plain::<STATS>(&frag, edges, poly.t, counters);
         }
         // The pixels full already, in the two orders of an edge's words (none without
         // the pre-test: the vertex pixels' test of them folds).
         let full = if PRETEST {
-            match self.hidden_avx2(frag.px, frag.py, &poly.lanes) {
-                Err(covered) => return Visible { px: frag.px, py: frag.py, sets: [0; 16], first: 0, covered },
+            match self.hidden_avx2(px, py, &poly.lanes) {
+                Err(covered) => return Visible { px, py, sets: [0; 16], first: 0, covered },
                 Ok(full) => full,
             }
         } else {
@@ -1188,15 +1212,15 @@ impl SubpixelProcessors {
         // Two copies of the edge loop: with and without the vertex pixels (a test an
         // edge less).
         let code = if self.vertex_exact {
-            table_code_avx2_body!(&*self, frag, edges, true, full)
+            table_code_avx2_body!(&*self, px, py, active, edges, true, full)
         } else {
-            table_code_avx2_body!(&*self, frag, edges, false, full)
+            table_code_avx2_body!(&*self, px, py, active, edges, false, full)
         };
-        let code = _mm256_andnot_si256(box_outside_at_avx2(frag.px, frag.py, &poly.lanes), code);
-        let (vis, pixels) = self.apply_avx2::<STATS>(frag.px, frag.py, code, &poly.thin);
+        let code = _mm256_andnot_si256(box_outside_at_avx2(px, py, &poly.lanes), code);
+        let (vis, pixels) = self.apply_avx2::<STATS>(px, py, code, &poly.thin);
         if STATS {
-            counters.spp.edge_lookups += 16 * frag.active.len() as u64;
-            let on_screen = (self.width - frag.px).min(CELL_SIDE) * (self.height - frag.py).min(CELL_SIDE);
+            counters.spp.edge_lookups += 16 * active.len() as u64;
+            let on_screen = (self.width - px).min(CELL_SIDE) * (self.height - py).min(CELL_SIDE);
             counters.count_spp_pixels(pixels.count_ones(), on_screen);
         }
         vis
