@@ -334,6 +334,10 @@ pub(crate) struct MapAvx2<'a> {
     starts: [__m256i; 2],
     /// The last 4-byte read's start in the pair layout.
     last: __m256i,
+    /// The last level's `T1..T4` as `f32`: its one texel four times, the 4 bytes
+    /// at its start in the pair layout, which every look-up in that level reads
+    /// ([`Self::top_avx2`]).
+    top_quad: [f32; 4],
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -357,6 +361,7 @@ impl TextureMap {
                 _mm256_setr_epi32(start(0), start(1), start(2), start(3), start(4), start(5), start(6), start(7))
             }),
             last: _mm256_set1_epi32((self.pairs.len() - 4) as i32),
+            top_quad: std::array::from_fn(|i| f32::from(self.pairs[self.pairs.len() - 4 + i])),
         }
     }
 }
@@ -372,7 +377,11 @@ impl MapAvx2<'_> {
     #[target_feature(enable = "avx2")]
     #[inline]
     pub(crate) fn sample_avx2(&self, u: __m256, v: __m256, footprint: __m256) -> __m256 {
-        let level = self.level_avx2(u, v, footprint);
+        let texels = _mm256_mul_ps(footprint, self.side);
+        if _mm256_movemask_ps(self.beyond_avx2(texels)) == 0xFF {
+            return self.top_avx2(u, v);
+        }
+        let level = self.level_avx2(u, v, texels);
         let fine = self.bilinear_avx2(level.guess, level.fu, level.fv);
         let (k, fine) = if _mm256_movemask_epi8(_mm256_cmpeq_epi32(level.guess, level.k)) == -1 {
             (level.guess, fine)
@@ -396,7 +405,11 @@ impl MapAvx2<'_> {
     #[target_feature(enable = "avx2")]
     #[inline]
     pub(crate) fn sample2_avx2(&self, u: [__m256; 2], v: [__m256; 2], footprint: [__m256; 2]) -> [__m256; 2] {
-        let level = [self.level_avx2(u[0], v[0], footprint[0]), self.level_avx2(u[1], v[1], footprint[1])];
+        let texels = [_mm256_mul_ps(footprint[0], self.side), _mm256_mul_ps(footprint[1], self.side)];
+        if _mm256_movemask_ps(_mm256_and_ps(self.beyond_avx2(texels[0]), self.beyond_avx2(texels[1]))) == 0xFF {
+            return [self.top_avx2(u[0], v[0]), self.top_avx2(u[1], v[1])];
+        }
+        let level = [self.level_avx2(u[0], v[0], texels[0]), self.level_avx2(u[1], v[1], texels[1])];
         // (Both look-ups written out, not an array's `map` of a closure: the closure
         // compiled out of line whenever the code units were laid out differently,
         // +9.7 M instructions on default.)
@@ -432,14 +445,43 @@ impl MapAvx2<'_> {
         ]
     }
 
-    /// The level `k`, the blend `kr` to the next and the fractional parts of `u`,
-    /// `v` of eight pixels ([`TextureMap::sample_lanes`] up to its first look-up), and
-    /// the guess of `k` from the footprint's exponent ([`Level::guess`]).
+    /// The lanes whose footprint in level-0 texels `texels` is at least `2^(n+1)`
+    /// ([`lod_of_texels`]'s `beyond`): their level of detail is `n`, the last
+    /// level, with no blend (`kr` 0). Where all eight lanes are, sampling is
+    /// [`Self::top_avx2`] (21 % of default's half cells: far ground).
     #[target_feature(enable = "avx2")]
     #[inline]
-    fn level_avx2(&self, u: __m256, v: __m256, footprint: __m256) -> Level {
+    fn beyond_avx2(&self, texels: __m256) -> __m256 {
+        _mm256_cmp_ps::<_CMP_GE_OQ>(texels, self.beyond)
+    }
+
+    /// [`TextureMap::sample_lanes`] of eight pixels all at the last level `n`
+    /// ([`Self::beyond_avx2`]), bit for bit: their `lod` is `n` (its clamp), so `k`
+    /// is `n` and `kr` 0, and the value is [`Self::bilinear_avx2`]'s in level `n`.
+    /// There the side is 1, so `fu side` is `fu` (times 1, exact), and every read
+    /// is the level's one texel ([`MapAvx2::top_quad`]): the same weights `Ku`,
+    /// `Kv` and [`eq3_avx2`] on the same `T1..T4`, with no level found, no `log2`
+    /// ROM, no address and no gather (the gather's wait was the longest step of
+    /// such a half cell).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn top_avx2(&self, u: __m256, v: __m256) -> __m256 {
+        let half = _mm256_set1_ps(0.5);
+        let s = _mm256_sub_ps(fract01_avx2(u), half);
+        let t = _mm256_sub_ps(fract01_avx2(v), half);
+        let (ku, kv) = (_mm256_sub_ps(s, _mm256_floor_ps(s)), _mm256_sub_ps(t, _mm256_floor_ps(t)));
+        let quad = self.top_quad.map(|t| _mm256_set1_ps(t));
+        eq3_avx2(ku, kv, quad)
+    }
+
+    /// The level `k`, the blend `kr` to the next and the fractional parts of `u`,
+    /// `v` of eight pixels ([`TextureMap::sample_lanes`] up to its first look-up,
+    /// `texels` its footprint times the side), and the guess of `k` from the
+    /// footprint's exponent ([`Level::guess`]).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn level_avx2(&self, u: __m256, v: __m256, texels: __m256) -> Level {
         // Level of detail ([`TextureMap::lod`], [`lod_of_texels`]).
-        let texels = _mm256_mul_ps(footprint, self.side);
         let top = self.top;
         // `log.min(top)` (never NaN: the ROM's `log2` is finite) where below
         // `beyond`, else `top`; all that where above one texel, else 0 (NaN too:
@@ -515,14 +557,23 @@ impl MapAvx2<'_> {
         let t2 = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32::<8>(quad), byte));
         let t3 = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32::<16>(quad), byte));
         let t4 = _mm256_cvtepi32_ps(_mm256_srli_epi32::<24>(quad));
-        // [`eq3`].
-        let one = _mm256_set1_ps(1.0);
-        let (nku, nkv) = (_mm256_sub_ps(one, ku), _mm256_sub_ps(one, kv));
-        let left = _mm256_add_ps(_mm256_mul_ps(nkv, t1), _mm256_mul_ps(kv, t2));
-        let right = _mm256_add_ps(_mm256_mul_ps(nkv, t3), _mm256_mul_ps(kv, t4));
-        let value = _mm256_add_ps(_mm256_mul_ps(nku, left), _mm256_mul_ps(ku, right));
-        _mm256_div_ps(value, _mm256_set1_ps(TEXEL_ONE))
+        eq3_avx2(ku, kv, [t1, t2, t3, t4])
     }
+}
+
+/// [`eq3`] of eight lanes, `T1..T4` in `t`, then the texel scale: the value in
+/// `0..=1`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn eq3_avx2(ku: __m256, kv: __m256, t: [__m256; 4]) -> __m256 {
+    let [t1, t2, t3, t4] = t;
+    let one = _mm256_set1_ps(1.0);
+    let (nku, nkv) = (_mm256_sub_ps(one, ku), _mm256_sub_ps(one, kv));
+    let left = _mm256_add_ps(_mm256_mul_ps(nkv, t1), _mm256_mul_ps(kv, t2));
+    let right = _mm256_add_ps(_mm256_mul_ps(nkv, t3), _mm256_mul_ps(kv, t4));
+    let value = _mm256_add_ps(_mm256_mul_ps(nku, left), _mm256_mul_ps(ku, right));
+    _mm256_div_ps(value, _mm256_set1_ps(TEXEL_ONE))
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -1293,6 +1344,23 @@ mod tests {
                 });
                 check_sampling(&map, &u, &v, &footprint);
             }
+            // Groups whose every footprint is at least `2^(n+1)` texels (the last
+            // level in every lane: [`MapAvx2::top_avx2`]), from just there up, at
+            // points anywhere and at the map's edges.
+            let beyond = (2u32 << map.log2_side()) as f32 / scale;
+            for round in 0..200 {
+                let u: [f32; 8] = std::array::from_fn(|i| match round % 4 {
+                    0 => odd[(i + round) % odd.len()],
+                    _ => (next() - 0.5) * 40.0,
+                });
+                let v: [f32; 8] = std::array::from_fn(|_| (next() - 0.5) * 40.0);
+                let footprint: [f32; 8] = std::array::from_fn(|i| match (round + i) % 4 {
+                    0 => beyond,
+                    1 => f32::INFINITY,
+                    _ => beyond * (next() * 20.0).exp2(),
+                });
+                check_sampling(&map, &u, &v, &footprint);
+            }
             // Exact powers of two and their neighbours: the clamp's edges; and the
             // map's edges, where the look-ups wrap.
             for e in -3..=14 {
@@ -1327,7 +1395,8 @@ mod tests {
             // store touches.
             unsafe {
                 let zero = _mm256_setzero_ps();
-                let level = map.avx2().level_avx2(zero, zero, _mm256_loadu_ps(footprint.as_ptr()));
+                let map = map.avx2();
+                let level = map.level_avx2(zero, zero, _mm256_mul_ps(_mm256_loadu_ps(footprint.as_ptr()), map.side));
                 _mm256_storeu_si256(guess.as_mut_ptr().cast(), level.guess);
                 _mm256_storeu_si256(k.as_mut_ptr().cast(), level.k);
             }
