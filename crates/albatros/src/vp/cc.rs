@@ -271,11 +271,19 @@ impl<'a> ColorComputers<'a> {
     ) {
         #[cfg(target_arch = "x86_64")]
         if let Some(mut f1) = fused.and_then(|fused| vb.f1_avx2(fused)) {
-            // SAFETY: `prepared_avx2` and `shade_avx2` only need AVX2, which the
-            // processor has (a `FusedF1` is made only then).
+            // SAFETY: `prepared_avx2` and `shade_textured_avx2` only need AVX2,
+            // which the processor has (a `FusedF1` is made only then).
             #[allow(unsafe_code, reason = "calls of functions compiled for AVX2, after detection")]
             unsafe {
-                self.prepared_avx2(poly).shade_avx2(vis, out, Some(&mut f1))
+                // [`PolyAvx2::shade_avx2`]'s choice of copy, here: a function for
+                // AVX2 is not inlined into this one, so there it was a call and a
+                // jump a cell (terrain: ~3 instructions a cell).
+                let prepared = self.prepared_avx2(poly);
+                if prepared.texture.is_some() {
+                    prepared.shade_textured_avx2::<true>(vis, out, Some(&mut f1));
+                } else {
+                    prepared.shade_textured_avx2::<false>(vis, out, Some(&mut f1));
+                }
             };
             if STATS {
                 let visible = crate::model::stats::visible_pixels(&vis.sets);
