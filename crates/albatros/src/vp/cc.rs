@@ -30,7 +30,10 @@
 //! the AVX2 copy starts at the level the footprint's exponent gives and checks
 //! against the ROM's level after (the look-up's chain, the cell's longest, no
 //! longer waits for the `log2` ROM, which is not read at all where every lane's
-//! level is settled by the clamps: a magnified map); the TAC's ROM entries `k`
+//! level is settled by the clamps: a magnified map; where every lane's footprint
+//! is past the pyramid, the last level's one texel is known, with no look-up);
+//! the AVX2 copy's function is compiled twice, for polygons with a texture drawn
+//! and without (each copy its own registers); the TAC's ROM entries `k`
 //! and `k + 1` one 8-byte read, by gathers in the AVX-512 copy and by scalar
 //! loads in the AVX2 copy (Zen 3's gathers cost more), the fog ROM's from a
 //! window of eight entries around lane 0's when every lane's lie in it
@@ -268,11 +271,19 @@ impl<'a> ColorComputers<'a> {
     ) {
         #[cfg(target_arch = "x86_64")]
         if let Some(mut f1) = fused.and_then(|fused| vb.f1_avx2(fused)) {
-            // SAFETY: `prepared_avx2` and `shade_avx2` only need AVX2, which the
-            // processor has (a `FusedF1` is made only then).
+            // SAFETY: `prepared_avx2` and `shade_textured_avx2` only need AVX2,
+            // which the processor has (a `FusedF1` is made only then).
             #[allow(unsafe_code, reason = "calls of functions compiled for AVX2, after detection")]
             unsafe {
-                self.prepared_avx2(poly).shade_avx2(vis, out, Some(&mut f1))
+                // [`PolyAvx2::shade_avx2`]'s choice of copy, here: a function for
+                // AVX2 is not inlined into this one, so there it was a call and a
+                // jump a cell (terrain: ~3 instructions a cell).
+                let prepared = self.prepared_avx2(poly);
+                if prepared.texture.is_some() {
+                    prepared.shade_textured_avx2::<true>(vis, out, Some(&mut f1));
+                } else {
+                    prepared.shade_textured_avx2::<false>(vis, out, Some(&mut f1));
+                }
             };
             if STATS {
                 let visible = crate::model::stats::visible_pixels(&vis.sets);
@@ -536,8 +547,27 @@ impl<'a> PolyAvx2<'a> {
     ///
     /// With `f1`, the VB's F1 of the cell follows in the same function
     /// ([`ColorComputers::shade_accumulate`]).
+    ///
+    /// Two copies, with and without a texture drawn ([`Self::shade_textured_avx2`]).
     #[target_feature(enable = "avx2")]
+    #[inline]
     fn shade_avx2(&self, vis: &Visible, out: &mut CellColors, f1: Option<&mut F1Avx2>) {
+        if self.texture.is_some() {
+            self.shade_textured_avx2::<true>(vis, out, f1);
+        } else {
+            self.shade_textured_avx2::<false>(vis, out, f1);
+        }
+    }
+
+    /// [`Self::shade_avx2`] of a polygon with a texture drawn (`TEXTURED`, the
+    /// set-up's `texture`) or without: a copy of the function for each, so that
+    /// the texture's code and registers are not in the copy of the polygons with
+    /// none (terrain's, city's nearly all), and a change to one copy does not move
+    /// the other's register allocation. (In one function, the texture unit's
+    /// shortcut for the last level, [`MapAvx2::top_avx2`], had cost terrain's
+    /// untextured cells ~2 instructions a cell of spills.)
+    #[target_feature(enable = "avx2")]
+    fn shade_textured_avx2<const TEXTURED: bool>(&self, vis: &Visible, out: &mut CellColors, f1: Option<&mut F1Avx2>) {
         const N: usize = AVX2_LANES;
         let visible = visible_avx2(&vis.sets);
         if visible == 0 {
@@ -545,19 +575,19 @@ impl<'a> PolyAvx2<'a> {
         }
         let q = self.at_q(vis);
         if visible & 0xFF != 0 && visible >> N != 0 {
-            for (half, c) in self.cell(&q).iter().enumerate() {
+            for (half, c) in self.cell::<TEXTURED>(&q).iter().enumerate() {
                 for (out, c) in out.rgb.iter_mut().zip(c) {
                     store_lanes(*c, (&mut out[N * half..N * (half + 1)]).try_into().expect("8 lanes"));
                 }
             }
         } else {
             let half = usize::from(visible & 0xFF == 0);
-            for (out, c) in out.rgb.iter_mut().zip(self.group(&q, half)) {
+            for (out, c) in out.rgb.iter_mut().zip(self.group::<TEXTURED>(&q, half)) {
                 store_lanes(c, (&mut out[N * half..N * (half + 1)]).try_into().expect("8 lanes"));
             }
         }
         if let Some(f1) = f1 {
-            f1.accumulate(vis, out);
+            f1.accumulate::<TEXTURED>(vis, out);
         }
     }
 
@@ -585,8 +615,8 @@ impl<'a> PolyAvx2<'a> {
     /// the functions at Q ([`Self::at_q`]).
     #[target_feature(enable = "avx2")]
     #[inline]
-    fn group(&self, q: &[__m256; 4], half: usize) -> [__m256; 3] {
-        let front = self.front(q, half);
+    fn group<const TEXTURED: bool>(&self, q: &[__m256; 4], half: usize) -> [__m256; 3] {
+        let front = self.front::<TEXTURED>(q, half);
         let m = match (&self.texture, front.texture) {
             (Some(t), Some((u, v, footprint))) => Some(t.map.sample_avx2(u, v, footprint)),
             _ => None,
@@ -599,8 +629,8 @@ impl<'a> PolyAvx2<'a> {
     /// side by side.
     #[target_feature(enable = "avx2")]
     #[inline]
-    fn cell(&self, q: &[__m256; 4]) -> [[__m256; 3]; 2] {
-        let front = [self.front(q, 0), self.front(q, 1)];
+    fn cell<const TEXTURED: bool>(&self, q: &[__m256; 4]) -> [[__m256; 3]; 2] {
+        let front = [self.front::<TEXTURED>(q, 0), self.front::<TEXTURED>(q, 1)];
         let m = match (&self.texture, front[0].texture, front[1].texture) {
             (Some(t), Some((u0, v0, f0)), Some((u1, v1, f1))) => {
                 let m = t.map.sample2_avx2([u0, u1], [v0, v1], [f0, f1]);
@@ -612,11 +642,12 @@ impl<'a> PolyAvx2<'a> {
     }
 
     /// The first steps of [`Self::group`]: `Z`, intensity, and with a texture `u`,
-    /// `v` and the footprint. Each function stepped from Q as `(q + a dx) + b dy`
-    /// (P2 fig. 2), the products from the set-up.
+    /// `v` and the footprint (`TEXTURED`: whether the set-up has a texture drawn).
+    /// Each function stepped from Q as `(q + a dx) + b dy` (P2 fig. 2), the
+    /// products from the set-up.
     #[target_feature(enable = "avx2")]
     #[inline]
-    fn front(&self, q: &[__m256; 4], half: usize) -> Front {
+    fn front<const TEXTURED: bool>(&self, q: &[__m256; 4], half: usize) -> Front {
         let (a_dx, b_dy) = (&self.a_dx[half & 1], &self.b_dy[half & 1]);
         let step = |i: usize| _mm256_add_ps(_mm256_add_ps(q[i], a_dx[i]), b_dy[i]);
         let one = _mm256_set1_ps(1.0);
@@ -625,7 +656,7 @@ impl<'a> PolyAvx2<'a> {
         let z = _mm256_div_ps(one, _mm256_max_ps(step(0), _mm256_set1_ps(f32::MIN_POSITIVE)));
         let intensity = _mm256_mul_ps(step(1), z);
         let intensity = _mm256_max_ps(intensity, _mm256_setzero_ps());
-        let texture = self.texture.as_ref().map(|t| {
+        let texture = if TEXTURED { self.texture.as_ref() } else { None }.map(|t| {
             let u = _mm256_mul_ps(step(2), z);
             let v = _mm256_mul_ps(step(3), z);
             let footprint = _mm256_mul_ps(_mm256_mul_ps(_mm256_mul_ps(t.footprint_scale, z), z), t.par);

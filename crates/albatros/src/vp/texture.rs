@@ -80,7 +80,17 @@ pub struct TextureMap {
     /// T3, T4` of P2 eq. (3), wrapped, with no mask of the `+ 1`s. Twice the
     /// texels' memory (plus a column per level).
     pairs: Vec<u8>,
+    /// Each level `k`'s constants of a look-up in the pair layout, `[2^(n-k)` as
+    /// `f32` bits, `2^(n-k) - 1`, `2^(n-k) + 1`, `pair_start]`, levels above `n`
+    /// as `n`: where a group's lanes are all in one level, the AVX2 look-up takes
+    /// them from here ([`MapAvx2::level_lanes`]).
+    level_constants: [[u32; 4]; LEVEL_CONSTANTS],
 }
+
+/// [`TextureMap::level_constants`]' entries: levels `0..=MAX_LOG2_SIDE`, and as
+/// many more, so that a level masked to 4 bits is inside.
+const LEVEL_CONSTANTS: usize = 16;
+const _: () = assert!((MAX_LOG2_SIDE as usize) < LEVEL_CONSTANTS && LEVEL_CONSTANTS.is_power_of_two());
 
 impl fmt::Debug for TextureMap {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -133,7 +143,11 @@ impl TextureMap {
             sums = next;
         }
         let pairs = Self::pairs(n, &texels, &offsets);
-        Self { log2_side: n, texels, offsets, pairs }
+        let level_constants = std::array::from_fn(|k| {
+            let side = 1u32 << (n - (k as u32).min(n));
+            [(side as f32).to_bits(), side - 1, side + 1, pair_start(n, side)]
+        });
+        Self { log2_side: n, texels, offsets, pairs, level_constants }
     }
 
     /// The pair layout of the levels (see [`Self::pairs`]'s field).
@@ -334,6 +348,10 @@ pub(crate) struct MapAvx2<'a> {
     starts: [__m256i; 2],
     /// The last 4-byte read's start in the pair layout.
     last: __m256i,
+    /// The last level's `T1..T4` as `f32`: its one texel four times, the 4 bytes
+    /// at its start in the pair layout, which every look-up in that level reads
+    /// ([`Self::top_avx2`]).
+    top_quad: [f32; 4],
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -357,6 +375,7 @@ impl TextureMap {
                 _mm256_setr_epi32(start(0), start(1), start(2), start(3), start(4), start(5), start(6), start(7))
             }),
             last: _mm256_set1_epi32((self.pairs.len() - 4) as i32),
+            top_quad: std::array::from_fn(|i| f32::from(self.pairs[self.pairs.len() - 4 + i])),
         }
     }
 }
@@ -372,7 +391,11 @@ impl MapAvx2<'_> {
     #[target_feature(enable = "avx2")]
     #[inline]
     pub(crate) fn sample_avx2(&self, u: __m256, v: __m256, footprint: __m256) -> __m256 {
-        let level = self.level_avx2(u, v, footprint);
+        let texels = _mm256_mul_ps(footprint, self.side);
+        if _mm256_movemask_ps(self.beyond_avx2(texels)) == 0xFF {
+            return self.top_avx2(u, v);
+        }
+        let level = self.level_avx2(u, v, texels);
         let fine = self.bilinear_avx2(level.guess, level.fu, level.fv);
         let (k, fine) = if _mm256_movemask_epi8(_mm256_cmpeq_epi32(level.guess, level.k)) == -1 {
             (level.guess, fine)
@@ -396,19 +419,40 @@ impl MapAvx2<'_> {
     #[target_feature(enable = "avx2")]
     #[inline]
     pub(crate) fn sample2_avx2(&self, u: [__m256; 2], v: [__m256; 2], footprint: [__m256; 2]) -> [__m256; 2] {
-        let level = [self.level_avx2(u[0], v[0], footprint[0]), self.level_avx2(u[1], v[1], footprint[1])];
+        let texels = [_mm256_mul_ps(footprint[0], self.side), _mm256_mul_ps(footprint[1], self.side)];
+        if _mm256_movemask_ps(_mm256_and_ps(self.beyond_avx2(texels[0]), self.beyond_avx2(texels[1]))) == 0xFF {
+            return [self.top_avx2(u[0], v[0]), self.top_avx2(u[1], v[1])];
+        }
+        let level = [self.level_avx2(u[0], v[0], texels[0]), self.level_avx2(u[1], v[1], texels[1])];
         // (Both look-ups written out, not an array's `map` of a closure: the closure
         // compiled out of line whenever the code units were laid out differently,
         // +9.7 M instructions on default.)
-        let fine = [
-            self.bilinear_avx2(level[0].guess, level[0].fu, level[0].fv),
-            self.bilinear_avx2(level[1].guess, level[1].fu, level[1].fv),
-        ];
+        // Every lane of both groups guessed in one level (that of lane 0, at most
+        // `n`): its constants from the map's table.
+        let first = _mm256_broadcastd_epi32(_mm256_castsi256_si128(level[0].guess));
+        let one_level = _mm256_movemask_epi8(_mm256_and_si256(
+            _mm256_cmpeq_epi32(level[0].guess, first),
+            _mm256_cmpeq_epi32(level[1].guess, first),
+        )) == -1;
+        let guess = _mm256_cvtsi256_si32(level[0].guess) as usize;
+        let fine = if one_level {
+            let lanes = self.level_lanes(guess);
+            [
+                self.bilinear_in_avx2(lanes, level[0].fu, level[0].fv),
+                self.bilinear_in_avx2(lanes, level[1].fu, level[1].fv),
+            ]
+        } else {
+            [
+                self.bilinear_avx2(level[0].guess, level[0].fu, level[0].fv),
+                self.bilinear_avx2(level[1].guess, level[1].fu, level[1].fv),
+            ]
+        };
         let guessed = _mm256_and_si256(
             _mm256_cmpeq_epi32(level[0].guess, level[0].k),
             _mm256_cmpeq_epi32(level[1].guess, level[1].k),
         );
-        let (k, fine) = if _mm256_movemask_epi8(guessed) == -1 {
+        let guessed = _mm256_movemask_epi8(guessed) == -1;
+        let (k, fine) = if guessed {
             ([level[0].guess, level[1].guess], fine)
         } else {
             let exact = [
@@ -423,23 +467,60 @@ impl MapAvx2<'_> {
         if _mm256_movemask_ps(blends) == 0 {
             return fine;
         }
-        let (k0, k1) = (self.coarser_avx2(k[0]), self.coarser_avx2(k[1]));
-        let coarse =
-            [self.bilinear_avx2(k0, level[0].fu, level[0].fv), self.bilinear_avx2(k1, level[1].fu, level[1].fv)];
+        let coarse = if one_level && guessed {
+            // The next level (or `n` again, [`Self::coarser_avx2`]) in every lane.
+            let lanes = self.level_lanes(guess + usize::from(guess < self.map.log2_side as usize));
+            [
+                self.bilinear_in_avx2(lanes, level[0].fu, level[0].fv),
+                self.bilinear_in_avx2(lanes, level[1].fu, level[1].fv),
+            ]
+        } else {
+            let (k0, k1) = (self.coarser_avx2(k[0]), self.coarser_avx2(k[1]));
+            [self.bilinear_avx2(k0, level[0].fu, level[0].fv), self.bilinear_avx2(k1, level[1].fu, level[1].fv)]
+        };
         [
             _mm256_add_ps(fine[0], _mm256_mul_ps(kr0, _mm256_sub_ps(coarse[0], fine[0]))),
             _mm256_add_ps(fine[1], _mm256_mul_ps(kr1, _mm256_sub_ps(coarse[1], fine[1]))),
         ]
     }
 
-    /// The level `k`, the blend `kr` to the next and the fractional parts of `u`,
-    /// `v` of eight pixels ([`TextureMap::sample_lanes`] up to its first look-up), and
-    /// the guess of `k` from the footprint's exponent ([`Level::guess`]).
+    /// The lanes whose footprint in level-0 texels `texels` is at least `2^(n+1)`
+    /// ([`lod_of_texels`]'s `beyond`): their level of detail is `n`, the last
+    /// level, with no blend (`kr` 0). Where all eight lanes are, sampling is
+    /// [`Self::top_avx2`] (21 % of default's half cells: far ground).
     #[target_feature(enable = "avx2")]
     #[inline]
-    fn level_avx2(&self, u: __m256, v: __m256, footprint: __m256) -> Level {
+    fn beyond_avx2(&self, texels: __m256) -> __m256 {
+        _mm256_cmp_ps::<_CMP_GE_OQ>(texels, self.beyond)
+    }
+
+    /// [`TextureMap::sample_lanes`] of eight pixels all at the last level `n`
+    /// ([`Self::beyond_avx2`]), bit for bit: their `lod` is `n` (its clamp), so `k`
+    /// is `n` and `kr` 0, and the value is [`Self::bilinear_avx2`]'s in level `n`.
+    /// There the side is 1, so `fu side` is `fu` (times 1, exact), and every read
+    /// is the level's one texel ([`MapAvx2::top_quad`]): the same weights `Ku`,
+    /// `Kv` and [`eq3_avx2`] on the same `T1..T4`, with no level found, no `log2`
+    /// ROM, no address and no gather (the gather's wait was the longest step of
+    /// such a half cell).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn top_avx2(&self, u: __m256, v: __m256) -> __m256 {
+        let half = _mm256_set1_ps(0.5);
+        let s = _mm256_sub_ps(fract01_avx2(u), half);
+        let t = _mm256_sub_ps(fract01_avx2(v), half);
+        let (ku, kv) = (_mm256_sub_ps(s, _mm256_floor_ps(s)), _mm256_sub_ps(t, _mm256_floor_ps(t)));
+        let quad = self.top_quad.map(|t| _mm256_set1_ps(t));
+        eq3_avx2(ku, kv, quad)
+    }
+
+    /// The level `k`, the blend `kr` to the next and the fractional parts of `u`,
+    /// `v` of eight pixels ([`TextureMap::sample_lanes`] up to its first look-up,
+    /// `texels` its footprint times the side), and the guess of `k` from the
+    /// footprint's exponent ([`Level::guess`]).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn level_avx2(&self, u: __m256, v: __m256, texels: __m256) -> Level {
         // Level of detail ([`TextureMap::lod`], [`lod_of_texels`]).
-        let texels = _mm256_mul_ps(footprint, self.side);
         let top = self.top;
         // `log.min(top)` (never NaN: the ROM's `log2` is finite) where below
         // `beyond`, else `top`; all that where above one texel, else 0 (NaN too:
@@ -480,10 +561,49 @@ impl MapAvx2<'_> {
     #[target_feature(enable = "avx2")]
     #[inline]
     fn bilinear_avx2(&self, k: __m256i, fu: __m256, fv: __m256) -> __m256 {
+        self.bilinear_in_avx2(self.lanes_of_avx2(k), fu, fv)
+    }
+
+    /// The constants of a look-up in level `k` per lane (at most `n`).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn lanes_of_avx2(&self, k: __m256i) -> LevelLanes {
         let level_log2 = _mm256_sub_epi32(self.n, k);
         // The side `2^(n-k)` as `f32` from its bits, and as an integer.
         let side_f = _mm256_castsi256_ps(_mm256_slli_epi32::<23>(_mm256_add_epi32(level_log2, _mm256_set1_epi32(127))));
         let side = _mm256_sllv_epi32(_mm256_set1_epi32(1), level_log2);
+        let one = _mm256_set1_epi32(1);
+        // [`pair_start`] of level `k` from the map's table (`k` is at most `n`).
+        let start = _mm256_blendv_epi8(
+            _mm256_permutevar8x32_epi32(self.starts[0], k),
+            _mm256_permutevar8x32_epi32(self.starts[1], k),
+            _mm256_cmpgt_epi32(k, _mm256_set1_epi32(7)),
+        );
+        LevelLanes { side_f, mask: _mm256_sub_epi32(side, one), row: _mm256_add_epi32(side, one), start }
+    }
+
+    /// The constants of a look-up in level `k` (at most `n`) in every lane, from
+    /// the map's table ([`TextureMap::level_constants`]): broadcasts from memory,
+    /// where [`Self::lanes_of_avx2`] finds them lane by lane (two permutes, a
+    /// select, a variable shift: ~10 instructions a look-up). A cell's lanes are
+    /// in one level in 96 % of default's whole textured cells.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn level_lanes(&self, k: usize) -> LevelLanes {
+        let [side_f, mask, row, start] = self.map.level_constants[k & (LEVEL_CONSTANTS - 1)];
+        LevelLanes {
+            side_f: _mm256_set1_ps(f32::from_bits(side_f)),
+            mask: _mm256_set1_epi32(mask as i32),
+            row: _mm256_set1_epi32(row as i32),
+            start: _mm256_set1_epi32(start as i32),
+        }
+    }
+
+    /// [`Self::bilinear_avx2`] with its level's constants `level`.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn bilinear_in_avx2(&self, level: LevelLanes, fu: __m256, fv: __m256) -> __m256 {
+        let LevelLanes { side_f, mask, row, start } = level;
         let half = _mm256_set1_ps(0.5);
         // [`split`] of `fu side - 1/2` and `fv side - 1/2`.
         let s = _mm256_sub_ps(_mm256_mul_ps(fu, side_f), half);
@@ -492,16 +612,9 @@ impl MapAvx2<'_> {
         let t = _mm256_sub_ps(_mm256_mul_ps(fv, side_f), half);
         let ft = _mm256_floor_ps(t);
         let (j0, kv) = (small_int_avx2(ft), _mm256_sub_ps(t, ft));
-        let mask = _mm256_sub_epi32(side, _mm256_set1_epi32(1));
         let (c0, r0) = (_mm256_and_si256(i0, mask), _mm256_and_si256(j0, mask));
-        // [`pair_start`] of level `k` from the map's table (`k` is at most `n`).
-        let start = _mm256_blendv_epi8(
-            _mm256_permutevar8x32_epi32(self.starts[0], k),
-            _mm256_permutevar8x32_epi32(self.starts[1], k),
-            _mm256_cmpgt_epi32(k, _mm256_set1_epi32(7)),
-        );
         // Pair `(r0, c0)`: `start + 2 (r0 (s + 1) + c0)`.
-        let pair = _mm256_add_epi32(_mm256_mullo_epi32(r0, _mm256_add_epi32(side, _mm256_set1_epi32(1))), c0);
+        let pair = _mm256_add_epi32(_mm256_mullo_epi32(r0, row), c0);
         let index = _mm256_add_epi32(start, _mm256_slli_epi32::<1>(pair));
         // Inside the layout already (the masks, and the starts of levels at most
         // `n`); the `min` makes every read safe whatever the lanes hold.
@@ -515,14 +628,23 @@ impl MapAvx2<'_> {
         let t2 = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32::<8>(quad), byte));
         let t3 = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32::<16>(quad), byte));
         let t4 = _mm256_cvtepi32_ps(_mm256_srli_epi32::<24>(quad));
-        // [`eq3`].
-        let one = _mm256_set1_ps(1.0);
-        let (nku, nkv) = (_mm256_sub_ps(one, ku), _mm256_sub_ps(one, kv));
-        let left = _mm256_add_ps(_mm256_mul_ps(nkv, t1), _mm256_mul_ps(kv, t2));
-        let right = _mm256_add_ps(_mm256_mul_ps(nkv, t3), _mm256_mul_ps(kv, t4));
-        let value = _mm256_add_ps(_mm256_mul_ps(nku, left), _mm256_mul_ps(ku, right));
-        _mm256_div_ps(value, _mm256_set1_ps(TEXEL_ONE))
+        eq3_avx2(ku, kv, [t1, t2, t3, t4])
     }
+}
+
+/// [`eq3`] of eight lanes, `T1..T4` in `t`, then the texel scale: the value in
+/// `0..=1`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn eq3_avx2(ku: __m256, kv: __m256, t: [__m256; 4]) -> __m256 {
+    let [t1, t2, t3, t4] = t;
+    let one = _mm256_set1_ps(1.0);
+    let (nku, nkv) = (_mm256_sub_ps(one, ku), _mm256_sub_ps(one, kv));
+    let left = _mm256_add_ps(_mm256_mul_ps(nkv, t1), _mm256_mul_ps(kv, t2));
+    let right = _mm256_add_ps(_mm256_mul_ps(nkv, t3), _mm256_mul_ps(kv, t4));
+    let value = _mm256_add_ps(_mm256_mul_ps(nku, left), _mm256_mul_ps(ku, right));
+    _mm256_div_ps(value, _mm256_set1_ps(TEXEL_ONE))
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -598,6 +720,18 @@ impl TextureMap {
         let value = _mm512_add_ps(_mm512_mul_ps(nku, left), _mm512_mul_ps(ku, right));
         _mm512_div_ps(value, _mm512_set1_ps(TEXEL_ONE))
     }
+}
+
+/// The constants of a look-up in one level per lane ([`MapAvx2::bilinear_in_avx2`]):
+/// the side `s` as `f32`, `s - 1` (the address mask), `s + 1` (pairs a row) and
+/// the level's start in the pair layout.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+struct LevelLanes {
+    side_f: __m256,
+    mask: __m256i,
+    row: __m256i,
+    start: __m256i,
 }
 
 /// [`MapAvx2::level_avx2`]'s values of eight pixels.
@@ -1293,6 +1427,37 @@ mod tests {
                 });
                 check_sampling(&map, &u, &v, &footprint);
             }
+            // Groups whose every footprint is at least `2^(n+1)` texels (the last
+            // level in every lane: [`MapAvx2::top_avx2`]), from just there up, at
+            // points anywhere and at the map's edges.
+            let beyond = (2u32 << map.log2_side()) as f32 / scale;
+            for round in 0..200 {
+                let u: [f32; 8] = std::array::from_fn(|i| match round % 4 {
+                    0 => odd[(i + round) % odd.len()],
+                    _ => (next() - 0.5) * 40.0,
+                });
+                let v: [f32; 8] = std::array::from_fn(|_| (next() - 0.5) * 40.0);
+                let footprint: [f32; 8] = std::array::from_fn(|i| match (round + i) % 4 {
+                    0 => beyond,
+                    1 => f32::INFINITY,
+                    _ => beyond * (next() * 20.0).exp2(),
+                });
+                check_sampling(&map, &u, &v, &footprint);
+            }
+            // Groups whose every lane is in one level (footprints in one octave of
+            // texels: [`MapAvx2::level_lanes`]), each level and the octave below
+            // the pyramid's first, blended with the next level or not.
+            for e in -1..=map.log2_side() as i32 {
+                for round in 0..40 {
+                    let u: [f32; 8] = std::array::from_fn(|_| (next() - 0.5) * 40.0);
+                    let v: [f32; 8] = std::array::from_fn(|_| (next() - 0.5) * 40.0);
+                    let footprint: [f32; 8] = std::array::from_fn(|i| match (round + i) % 5 {
+                        0 if round % 2 == 0 => (e as f32).exp2() / scale,
+                        _ => (e as f32 + next() * 0.999).exp2() / scale,
+                    });
+                    check_sampling(&map, &u, &v, &footprint);
+                }
+            }
             // Exact powers of two and their neighbours: the clamp's edges; and the
             // map's edges, where the look-ups wrap.
             for e in -3..=14 {
@@ -1327,7 +1492,8 @@ mod tests {
             // store touches.
             unsafe {
                 let zero = _mm256_setzero_ps();
-                let level = map.avx2().level_avx2(zero, zero, _mm256_loadu_ps(footprint.as_ptr()));
+                let map = map.avx2();
+                let level = map.level_avx2(zero, zero, _mm256_mul_ps(_mm256_loadu_ps(footprint.as_ptr()), map.side));
                 _mm256_storeu_si256(guess.as_mut_ptr().cast(), level.guess);
                 _mm256_storeu_si256(k.as_mut_ptr().cast(), level.k);
             }

@@ -1621,7 +1621,7 @@ fn accumulate_log8(codes: &mut [Word8], width: usize, vis: &Visible, colors: &Ce
         // just found to have.
         #[allow(unsafe_code, reason = "the one call of a function compiled for AVX2, after detection")]
         unsafe {
-            return accumulate_log8_avx2(codes, width, vis, colors, f1, *encoder, &regs.ln_area);
+            return accumulate_log8_avx2::<{ F1_ALONE }>(codes, width, vis, colors, f1, *encoder, &regs.ln_area);
         }
     }
     accumulate_log8_portable(codes, width, vis, colors, *f1, *encoder)
@@ -1672,12 +1672,34 @@ pub(crate) struct F1Avx2<'a> {
 
 #[cfg(target_arch = "x86_64")]
 impl F1Avx2<'_> {
-    /// [`VideoBuffer::accumulate`] of one cell, in [`accumulate_log8_avx2`].
+    /// [`VideoBuffer::accumulate`] of one cell, in [`accumulate_log8_avx2`]. `SITE`
+    /// tells the copies of the colour computers' function apart (one a copy, so
+    /// that each is inlined into its one caller).
     #[target_feature(enable = "avx2")]
     #[inline]
-    pub(crate) fn accumulate(&mut self, vis: &Visible, colors: &CellColors) {
+    pub(crate) fn accumulate<const SITE: bool>(&mut self, vis: &Visible, colors: &CellColors) {
         let regs = self.regs;
-        accumulate_log8_avx2(self.codes, self.width, vis, colors, &regs.f1, regs.encoder, &regs.ln_area);
+        if SITE {
+            accumulate_log8_avx2::<{ F1_FUSED_TEXTURED }>(
+                self.codes,
+                self.width,
+                vis,
+                colors,
+                &regs.f1,
+                regs.encoder,
+                &regs.ln_area,
+            );
+        } else {
+            accumulate_log8_avx2::<{ F1_FUSED }>(
+                self.codes,
+                self.width,
+                vis,
+                colors,
+                &regs.f1,
+                regs.encoder,
+                &regs.ln_area,
+            );
+        }
     }
 }
 
@@ -1785,7 +1807,7 @@ const SOFTPLUS_LANE_MAX: i32 = SOFTPLUS_PADDED as i32 - 2;
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-fn accumulate_log8_avx2(
+fn accumulate_log8_avx2<const SITE: u8>(
     codes: &mut [Word8],
     width: usize,
     vis: &Visible,
@@ -1819,16 +1841,16 @@ fn accumulate_log8_avx2(
     // first fragment): the whole cell's in 16-bit lanes.
     if done & 0xFF != visible & 0xFF && done >> 8 != visible >> 8 {
         let words = [
-            encode_half_avx2::<0, CELL_PATH>(colors, encoder, hidden, visible),
-            encode_half_avx2::<1, CELL_PATH>(colors, encoder, hidden, visible),
+            encode_half_avx2::<0, CELL_PATH, SITE>(colors, encoder, hidden, visible),
+            encode_half_avx2::<1, CELL_PATH, SITE>(colors, encoder, hidden, visible),
         ];
         // SAFETY: `cell` holds the cell's rows down to its last one with a visible
         // pixel (just above), each `cols` words from `r * width`.
         #[allow(unsafe_code, reason = "the cell's rows read and written without a bounds check per row")]
         unsafe {
-            let words = f1_cell16_avx2(cell, width, cols, vis, words, sets, f1, ln_area);
-            store_half_avx2::<0, CELL_PATH>(cell, width, cols, words[0], visible);
-            store_half_avx2::<1, CELL_PATH>(cell, width, cols, words[1], visible);
+            let words = f1_cell16_avx2::<SITE>(cell, width, cols, vis, words, sets, f1, ln_area);
+            store_half_avx2::<0, CELL_PATH, SITE>(cell, width, cols, words[0], visible);
+            store_half_avx2::<1, CELL_PATH, SITE>(cell, width, cols, words[1], visible);
         }
         return;
     }
@@ -1839,24 +1861,34 @@ fn accumulate_log8_avx2(
     // lanes' shifts and register halves known at compile time (a loop over the
     // halves kept them in registers and the F1 registers on the stack).
     if visible & 0xFF != 0 {
-        let word = encode_half_avx2::<0, HALF_PATH>(colors, encoder, hidden, visible);
+        let word = encode_half_avx2::<0, HALF_PATH, SITE>(colors, encoder, hidden, visible);
         // SAFETY: as for the whole cell's path above.
         #[allow(unsafe_code, reason = "the cell's rows read and written without a bounds check per row")]
         unsafe {
-            let word = f1_half_avx2::<0>(cell, width, cols, vis, f1, word, ln_s, visible, done);
-            store_half_avx2::<0, HALF_PATH>(cell, width, cols, word, visible);
+            let word = f1_half_avx2::<0, SITE>(cell, width, cols, vis, f1, word, ln_s, visible, done);
+            store_half_avx2::<0, HALF_PATH, SITE>(cell, width, cols, word, visible);
         }
     }
     if visible >> 8 != 0 {
-        let word = encode_half_avx2::<1, HALF_PATH>(colors, encoder, hidden, visible);
+        let word = encode_half_avx2::<1, HALF_PATH, SITE>(colors, encoder, hidden, visible);
         // SAFETY: as for the whole cell's path above.
         #[allow(unsafe_code, reason = "the cell's rows read and written without a bounds check per row")]
         unsafe {
-            let word = f1_half_avx2::<1>(cell, width, cols, vis, f1, word, ln_s, visible, done);
-            store_half_avx2::<1, HALF_PATH>(cell, width, cols, word, visible);
+            let word = f1_half_avx2::<1, SITE>(cell, width, cols, vis, f1, word, ln_s, visible, done);
+            store_half_avx2::<1, HALF_PATH, SITE>(cell, width, cols, word, visible);
         }
     }
 }
+
+/// [`accumulate_log8_avx2`]'s callers, its parameter `SITE`: each copy of it has
+/// one caller, so that it is inlined there (called from the two copies of the
+/// colour computers' function, it stayed out of line, a call a cell).
+#[cfg(target_arch = "x86_64")]
+const F1_ALONE: u8 = 0;
+#[cfg(target_arch = "x86_64")]
+const F1_FUSED: u8 = 1;
+#[cfg(target_arch = "x86_64")]
+const F1_FUSED_TEXTURED: u8 = 2;
 
 /// [`encode_half_avx2`]'s and [`store_half_avx2`]'s call sites, their second
 /// parameter: each copy of them has one caller, so that it is inlined (called
@@ -2052,7 +2084,7 @@ fn store16_avx2(arith: LogArith<'_>, v: __m256i) -> __m256i {
 #[inline]
 #[allow(clippy::too_many_arguments, reason = "the cell's registers, passed as they are")]
 #[allow(unsafe_code, reason = "the cell's rows read without a bounds check per row")]
-unsafe fn f1_cell16_avx2(
+unsafe fn f1_cell16_avx2<const F1: u8>(
     cell: &[Word8],
     width: usize,
     cols: usize,
@@ -2151,7 +2183,7 @@ unsafe fn f1_cell16_avx2(
 #[inline]
 #[allow(clippy::too_many_arguments, reason = "the cell's registers, passed as they are")]
 #[allow(unsafe_code, reason = "the cell's rows read without a bounds check per row")]
-unsafe fn f1_half_avx2<const HALF: usize>(
+unsafe fn f1_half_avx2<const HALF: usize, const F1: u8>(
     cell: &[Word8],
     width: usize,
     cols: usize,
@@ -2243,7 +2275,7 @@ unsafe fn f1_half_avx2<const HALF: usize>(
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-fn encode_half_avx2<const HALF: usize, const SITE: usize>(
+fn encode_half_avx2<const HALF: usize, const SITE: usize, const F1: u8>(
     colors: &CellColors,
     encoder: Encoder8Tables,
     hidden: __m256i,
@@ -2275,7 +2307,7 @@ fn encode_half_avx2<const HALF: usize, const SITE: usize>(
 #[target_feature(enable = "avx2")]
 #[inline]
 #[allow(unsafe_code, reason = "the cell's rows written without a bounds check per row")]
-unsafe fn store_half_avx2<const HALF: usize, const SITE: usize>(
+unsafe fn store_half_avx2<const HALF: usize, const SITE: usize, const F1: u8>(
     cell: &mut [Word8],
     width: usize,
     cols: usize,
@@ -4479,7 +4511,7 @@ mod tests {
             #[allow(unsafe_code, reason = "a test of the AVX2 copy, after detection")]
             fn avx2(c: &mut [Word8], w: usize, v: &Visible, k: &CellColors, f: LogF1, e: Encoder8Tables) {
                 // SAFETY: called only when the processor has AVX2 (below).
-                unsafe { accumulate_log8_avx2(c, w, v, k, &f, e, &LnArea16::new(f.ln_area)) }
+                unsafe { accumulate_log8_avx2::<{ F1_ALONE }>(c, w, v, k, &f, e, &LnArea16::new(f.ln_area)) }
             }
             if std::is_x86_feature_detected!("avx2") {
                 copies.push(("AVX2", avx2));
