@@ -1042,15 +1042,15 @@ impl FrameBuilder<'_> {
         self.places.get(n as usize).is_none_or(|&p| p >> slot as u8 & 1 != 0)
     }
 
-    /// One step of the static tree's traversal.
+    /// One step of the static tree's traversal, made by [`FrameBuilder::visit_ahead`]
+    /// (which keeps out the guests' places with none attached).
     #[inline(always)]
     fn visit(&mut self, step: Visit) {
         match step {
             Visit::Face(i) => self.static_face(i),
             Visit::Guests(n, slot) => {
-                if self.has_guests(n, slot) {
-                    self.emit_guests(n, slot);
-                }
+                debug_assert!(self.has_guests(n, slot));
+                self.emit_guests(n, slot);
             }
             Visit::Culled(n) => self.outside_faces(n),
         }

@@ -1120,7 +1120,13 @@ impl CellProcessors {
             // Before this edge at most the `i` edges before it went on a list, and
             // `len <= stride`: `ends[c] < (c + 1) stride`, in child `c`'s list.
             debug_assert!(i < stride && ends.iter().enumerate().all(|(c, &end)| end <= c * stride + i));
-            write_children(children, &mut ends, a, code.vm, half, code.codes >> 8 & open);
+            // SAFETY: `ends[c] < (c + 1) stride` (above: each edge moves an end by at
+            // most one, and a cell's list holds at most its polygon's edges, at most
+            // `stride`), and `children` is the four lists, `4 stride` entries.
+            #[allow(unsafe_code, reason = "the child lists' writes, bounded by the lists' length")]
+            unsafe {
+                write_children(children, &mut ends, a, code.vm, half, code.codes >> 8 & open)
+            };
         }
         let (ci_all, cri_all) = (codes_all as u8 & 0xF, (codes_all >> 4) as u8 & 0xF);
         let mem_on = self.masks.has(child_level);
@@ -1252,8 +1258,14 @@ impl CellProcessors {
 /// In SSE2 on x86-64: V1 and V2 in one register, the TG's swap of children 1 and 2
 /// by a mask, each copy two stores; elsewhere by its definition (tested against each
 /// other).
+///
+/// # Safety
+///
+/// `ends[c] < (c + 1) * (children.len() / 4)` for every child `c`: the stores are
+/// not bounds-checked.
+#[allow(unsafe_code, reason = "the child lists' writes, bounded by the caller")]
 #[inline(always)]
-fn write_children(
+unsafe fn write_children(
     children: &mut [ActiveEdge],
     ends: &mut [usize; 4],
     a: &ActiveEdge,
@@ -1977,7 +1989,11 @@ mod tests {
             let crossed = next(16) as u32;
             let (mut fast, mut plain) = (vec![sentinel; 4 * stride], vec![sentinel; 4 * stride]);
             let mut fast_ends = ends;
-            write_children(&mut fast, &mut fast_ends, &a, vm, half, crossed);
+            // SAFETY: `ends[c] < (c + 1) stride`, as made above.
+            #[allow(unsafe_code, reason = "the function's own test, its bound kept")]
+            unsafe {
+                write_children(&mut fast, &mut fast_ends, &a, vm, half, crossed)
+            };
             write_children_plain(&mut plain, &ends, &a, vm, half);
             assert_eq!(fast, plain, "{a:?} vm {vm} half {half}");
             let want: [usize; 4] = std::array::from_fn(|c| ends[c] + (crossed >> c & 1) as usize);

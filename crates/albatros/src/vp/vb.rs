@@ -1678,27 +1678,13 @@ impl F1Avx2<'_> {
     #[target_feature(enable = "avx2")]
     #[inline]
     pub(crate) fn accumulate<const SITE: bool>(&mut self, vis: &Visible, colors: &CellColors) {
-        let regs = self.regs;
+        let (codes, width, regs) = (&mut *self.codes, self.width, self.regs);
+        let (f1, encoder, ln_area) = (&regs.f1, regs.encoder, &regs.ln_area);
+        // (Stable Rust takes no `if` as a const argument: one call a site.)
         if SITE {
-            accumulate_log8_avx2::<{ F1_FUSED_TEXTURED }>(
-                self.codes,
-                self.width,
-                vis,
-                colors,
-                &regs.f1,
-                regs.encoder,
-                &regs.ln_area,
-            );
+            accumulate_log8_avx2::<{ F1_FUSED_TEXTURED }>(codes, width, vis, colors, f1, encoder, ln_area);
         } else {
-            accumulate_log8_avx2::<{ F1_FUSED }>(
-                self.codes,
-                self.width,
-                vis,
-                colors,
-                &regs.f1,
-                regs.encoder,
-                &regs.ln_area,
-            );
+            accumulate_log8_avx2::<{ F1_FUSED }>(codes, width, vis, colors, f1, encoder, ln_area);
         }
     }
 }
