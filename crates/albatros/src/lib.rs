@@ -13,6 +13,7 @@
 pub mod db;
 pub mod frame;
 pub mod gp;
+mod hint;
 pub mod matrix;
 pub mod model;
 pub mod peer;

@@ -38,6 +38,7 @@
 //! **Invariant**: for non-intersecting faces, a face that can hide another from the
 //! eye is emitted before it.
 
+use crate::hint::prefetch;
 use glam::{DVec3, Vec3};
 
 /// No child.
@@ -899,19 +900,4 @@ pub fn polygon_area(vs: &[BspVertex]) -> f64 {
         n += (vs[i].position - p0).cross(vs[i + 1].position - p0);
     }
     n.length() * 0.5
-}
-
-/// A hint to fetch the cache line holding `p` (never faults, whatever `p` is; no
-/// effect on any result). Nothing on other processors.
-#[inline(always)]
-fn prefetch(p: *const u8) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: a prefetch reads nothing the program sees and never faults, even for
-    // an address outside any allocation; SSE is in every x86-64 processor.
-    #[allow(unsafe_code, reason = "a cache hint, which needs a raw pointer")]
-    unsafe {
-        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p.cast::<i8>());
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = p;
 }

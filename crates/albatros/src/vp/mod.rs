@@ -303,8 +303,23 @@ impl VideoProcessor {
         let hierarchical = gq.hierarchical;
         // The last-level cells a polygon covers wholly, in Z order.
         let mut covered_cells: Vec<usize> = Vec::new();
+        // The last box of a polygon ahead whose memory was asked for ([`Sink::ahead`]).
+        let mut asked = [0u32; 4];
         for (s, frame) in stretches.iter().enumerate() {
             for (i, poly) in frame.polygons.iter().enumerate() {
+                if !STATS {
+                    if let Some(later) = frame.polygons.get(i + POLYGONS_AHEAD) {
+                        let bbox = bbox(frame.vertices_of(later), frame.width, frame.height);
+                        // Not next to the last box asked for: a neighbour's memory
+                        // is in the caches already (terrain's triangles follow one
+                        // another across the ground; `many`'s lie anywhere).
+                        if share.meets_columns(bbox[0], bbox[1]) && !near(bbox, asked) {
+                            spp.prefetch_box(bbox);
+                            sink.ahead(bbox);
+                            asked = bbox;
+                        }
+                    }
+                }
                 let index = (s, i);
                 let edges = frame.edges_of(poly);
                 let bbox = bbox(frame.vertices_of(poly), frame.width, frame.height);
@@ -470,6 +485,26 @@ trait Sink {
     fn cell(&mut self, vis: &spp::Visible);
     /// A visible fragment of the background (after every polygon).
     fn background(&mut self, vis: &spp::Visible);
+    /// A polygon [`POLYGONS_AHEAD`] later has the box `bbox` on this VP's share:
+    /// a hint to fetch its memory (no result may depend on it).
+    #[inline(always)]
+    fn ahead(&mut self, bbox: [u32; 4]) {
+        let _ = bbox;
+    }
+}
+
+/// How many polygons ahead of the one being rendered the VP asks for the video
+/// memory under the next ones ([`Sink::ahead`]).
+const POLYGONS_AHEAD: usize = 2;
+
+/// Pixels around a box within which [`near`] finds another box.
+const NEAR_PIXELS: u32 = 16;
+
+/// Whether box `b` lies within [`NEAR_PIXELS`] of box `a` (`[x0, x1, y0, y1]`):
+/// the look-ahead then leaves its memory to the caches.
+#[inline(always)]
+fn near(b: [u32; 4], a: [u32; 4]) -> bool {
+    b[0] + NEAR_PIXELS >= a[0] && b[1] <= a[1] + NEAR_PIXELS && b[2] + NEAR_PIXELS >= a[2] && b[3] <= a[3] + NEAR_PIXELS
 }
 
 /// A [`Sink`] from a function of the polygon (`None`: the background) and the
@@ -550,6 +585,11 @@ impl<const STATS: bool, const STRETCHES: bool> Sink for Colouring<'_, '_, STATS,
         // (Not when counting: the counters count the CC's pixels as the machine
         // colours them.)
         self.kind = if STATS { Kind::Shaded(poly) } else { Kind::Unknown(poly) };
+    }
+
+    #[inline(always)]
+    fn ahead(&mut self, bbox: [u32; 4]) {
+        self.vb.prefetch_box(bbox);
     }
 
     #[inline(always)]

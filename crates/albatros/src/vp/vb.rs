@@ -1056,6 +1056,33 @@ impl VideoBuffer {
         }
     }
 
+    /// Asks the caches for the video memory under a small box of pixels
+    /// (`[x0, x1, y0, y1]`, ends excluded, as [`super::bbox`] gives it) ahead of the
+    /// polygon that will write there: a hint only, no result changes. A small
+    /// polygon's pixels lie anywhere on the screen, so without it its first
+    /// accumulation waits on memory (on `many`, three quarters of the 8-bit flat
+    /// accumulation's samples sat on that load). Boxes wider than
+    /// [`PREFETCH_BOX_WIDTH`] or taller than [`PREFETCH_BOX_ROWS`] are left to the
+    /// processor's own prefetcher (a long polygon hides the wait in its own work).
+    #[inline]
+    pub fn prefetch_box(&self, [x0, x1, y0, y1]: [u32; 4]) {
+        if x1 <= x0 || y1 <= y0 || x1 - x0 > PREFETCH_BOX_WIDTH || y1 - y0 > PREFETCH_BOX_ROWS {
+            return;
+        }
+        let Memory::Log8 { codes, .. } = &self.memory else { return };
+        let width = self.width as usize;
+        let base = codes.as_ptr();
+        for y in y0 as usize..y1 as usize {
+            // The row's first and last words: the box is at most two lines wide.
+            let (first, last) =
+                (base.wrapping_add(y * width + x0 as usize), base.wrapping_add(y * width + x1 as usize - 1));
+            crate::hint::prefetch(first.cast());
+            if (first as usize) >> 6 != (last as usize) >> 6 {
+                crate::hint::prefetch(last.cast());
+            }
+        }
+    }
+
     /// [`Self::accumulate`] of one colour for the whole cell (the background): the
     /// same values, with the colour encoded once rather than per pixel (the same
     /// as [`Self::accumulate_prepared`] of [`Self::prepare_flat`]; kept apart for
@@ -2575,6 +2602,12 @@ impl LogWord for [u16; 3] {
 /// G, `[23:16]` B, `[31:24]` zero. One word per pixel compares, copies and fills
 /// at once (the readout's flat runs), in two thirds of the memory of three `u16`.
 pub type Word8 = u32;
+
+/// The widest box (pixels) [`VideoBuffer::prefetch_box`] asks for: 16 words of the
+/// 8-bit memory's rows, at most two cache lines a row.
+pub const PREFETCH_BOX_WIDTH: u32 = 16;
+/// The tallest box (rows) [`VideoBuffer::prefetch_box`] asks for.
+pub const PREFETCH_BOX_ROWS: u32 = 16;
 
 /// Bits per component of a [`Word8`].
 const WORD8_SHIFT: u32 = 8;
