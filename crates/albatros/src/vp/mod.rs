@@ -306,23 +306,29 @@ impl VideoProcessor {
         // The last box of a polygon ahead whose memory was asked for ([`Sink::ahead`]).
         let mut asked = [0u32; 4];
         for (s, frame) in stretches.iter().enumerate() {
+            let box_of =
+                |i: usize| frame.polygons.get(i).map(|p| bbox(frame.vertices_of(p), frame.width, frame.height));
+            // The boxes of the polygons from the current one to the one ahead,
+            // each found once, at `i % BOXES`.
+            let mut boxes = [[0u32; 4]; BOXES];
+            for (k, b) in boxes.iter_mut().enumerate().take(POLYGONS_AHEAD) {
+                *b = box_of(k).unwrap_or_default();
+            }
             for (i, poly) in frame.polygons.iter().enumerate() {
-                if !STATS {
-                    if let Some(later) = frame.polygons.get(i + POLYGONS_AHEAD) {
-                        let bbox = bbox(frame.vertices_of(later), frame.width, frame.height);
-                        // Not next to the last box asked for: a neighbour's memory
-                        // is in the caches already (terrain's triangles follow one
-                        // another across the ground; `many`'s lie anywhere).
-                        if share.meets_columns(bbox[0], bbox[1]) && !near(bbox, asked) {
-                            spp.prefetch_box(bbox);
-                            sink.ahead(bbox);
-                            asked = bbox;
-                        }
+                if let Some(later) = box_of(i + POLYGONS_AHEAD) {
+                    boxes[(i + POLYGONS_AHEAD) % BOXES] = later;
+                    // Not next to the last box asked for: a neighbour's memory is in
+                    // the caches already (terrain's triangles follow one another
+                    // across the ground; `many`'s lie anywhere).
+                    if !STATS && share.meets_columns(later[0], later[1]) && !near(later, asked) {
+                        spp.prefetch_box(later);
+                        sink.ahead(later);
+                        asked = later;
                     }
                 }
                 let index = (s, i);
                 let edges = frame.edges_of(poly);
-                let bbox = bbox(frame.vertices_of(poly), frame.width, frame.height);
+                let bbox = boxes[i % BOXES];
                 if bbox[0] >= bbox[1] || bbox[2] >= bbox[3] {
                     continue;
                 }
@@ -496,6 +502,9 @@ trait Sink {
 /// How many polygons ahead of the one being rendered the VP asks for the video
 /// memory under the next ones ([`Sink::ahead`]).
 const POLYGONS_AHEAD: usize = 2;
+
+/// The ring of boxes the loop keeps (a power of two above [`POLYGONS_AHEAD`]).
+const BOXES: usize = 4;
 
 /// Pixels around a box within which [`near`] finds another box.
 const NEAR_PIXELS: u32 = 16;
