@@ -3,6 +3,9 @@
 //! units use it where the next access is known ahead of time (the GP's walk of the
 //! static tree, the VP's video memory under the next polygon).
 
+/// Bytes of a cache line (x86-64's, and most others'): the step of a run of hints.
+pub(crate) const LINE: usize = 64;
+
 /// A hint to fetch the cache line holding `p` (never faults, whatever `p` is; no
 /// effect on any result). Nothing on other processors.
 #[inline(always)]

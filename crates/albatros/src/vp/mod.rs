@@ -303,8 +303,9 @@ impl VideoProcessor {
         let hierarchical = gq.hierarchical;
         // The last-level cells a polygon covers wholly, in Z order.
         let mut covered_cells: Vec<usize> = Vec::new();
-        // The last box of a polygon ahead whose memory was asked for ([`Sink::ahead`]).
-        let mut asked = [0u32; 4];
+        // The last box of a polygon ahead whose memory was asked for ([`Sink::ahead`]);
+        // none yet: a box no other box is near.
+        let mut asked = NOWHERE;
         for (s, frame) in stretches.iter().enumerate() {
             let box_of =
                 |i: usize| frame.polygons.get(i).map(|p| bbox(frame.vertices_of(p), frame.width, frame.height));
@@ -509,11 +510,15 @@ const BOXES: usize = 4;
 /// Pixels around a box within which [`near`] finds another box.
 const NEAR_PIXELS: u32 = 16;
 
+/// A box [`near`] no box on a screen is near (past any screen's side).
+const NOWHERE: [u32; 4] = [u32::MAX; 4];
+
 /// Whether box `b` lies within [`NEAR_PIXELS`] of box `a` (`[x0, x1, y0, y1]`):
 /// the look-ahead then leaves its memory to the caches.
 #[inline(always)]
 fn near(b: [u32; 4], a: [u32; 4]) -> bool {
-    b[0] + NEAR_PIXELS >= a[0] && b[1] <= a[1] + NEAR_PIXELS && b[2] + NEAR_PIXELS >= a[2] && b[3] <= a[3] + NEAR_PIXELS
+    let grown = |v: u32| v.saturating_add(NEAR_PIXELS);
+    grown(b[0]) >= a[0] && b[1] <= grown(a[1]) && grown(b[2]) >= a[2] && b[3] <= grown(a[3])
 }
 
 /// A [`Sink`] from a function of the polygon (`None`: the background) and the
@@ -737,6 +742,26 @@ fn bbox_sse41(verts: &[crate::frame::ScreenVertex], width: u32, height: u32) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The look-ahead's test of a box against the last one asked for ([`near`]):
+    /// within [`NEAR_PIXELS`] on every side, and never near [`NOWHERE`].
+    #[test]
+    fn the_look_ahead_skips_neighbours_only() {
+        let a = [100, 110, 50, 58];
+        // The same box, one overlapping it and one a few pixels off: near.
+        assert!(near(a, a));
+        assert!(near([104, 114, 54, 62], a));
+        assert!(near([110 + NEAR_PIXELS - 8, 110 + NEAR_PIXELS, 58, 60], a));
+        // Past the margin on any side, or nothing asked yet: not near.
+        assert!(!near([111 + NEAR_PIXELS, 120 + NEAR_PIXELS, 50, 58], a));
+        assert!(!near([60, 70, 50, 58], a));
+        assert!(!near([100, 110, 59 + NEAR_PIXELS, 70 + NEAR_PIXELS], a));
+        assert!(!near([100, 110, 10, 20], a));
+        assert!(!near(a, NOWHERE));
+        assert!(!near([0, 16, 0, 16], NOWHERE));
+        // The largest boxes do not overflow.
+        assert!(near(NOWHERE, NOWHERE));
+    }
 
     /// [`bbox`] (by whichever copy the build runs) is [`bbox_plain`]: random
     /// polygons on and off the screen, and coordinates that are NaN, infinite,

@@ -2298,16 +2298,17 @@ impl SubpixelProcessors {
         if cx1 - cx0 >= PREFETCH_BOX_CELLS || cy1 - cy0 >= PREFETCH_BOX_CELLS {
             return;
         }
+        use crate::hint::LINE;
         let base = self.masks.as_ptr().cast::<u8>();
         let size = std::mem::size_of::<Words16>();
         for cy in cy0 as usize..=cy1 as usize {
             let row = cy * self.stride;
             // Each line of the row's run of cells (a cell is half a line).
             let (first, last) = ((row + cx0 as usize) * size, (row + cx1 as usize) * size);
-            let mut at = first & !(PREFETCH_LINE - 1);
+            let mut at = first & !(LINE - 1);
             while at <= last {
                 crate::hint::prefetch(base.wrapping_add(at));
-                at += PREFETCH_LINE;
+                at += LINE;
             }
         }
     }
@@ -2315,8 +2316,6 @@ impl SubpixelProcessors {
 
 /// The most cells a side of a box [`SubpixelProcessors::prefetch_box`] asks for.
 const PREFETCH_BOX_CELLS: u32 = 5;
-/// A cache line's bytes, the step of [`SubpixelProcessors::prefetch_box`].
-const PREFETCH_LINE: usize = 64;
 
 #[cfg(test)]
 mod tests {

@@ -1077,7 +1077,7 @@ impl VideoBuffer {
             let (first, last) =
                 (base.wrapping_add(y * width + x0 as usize), base.wrapping_add(y * width + x1 as usize - 1));
             crate::hint::prefetch(first.cast());
-            if (first as usize) >> 6 != (last as usize) >> 6 {
+            if first as usize / crate::hint::LINE != last as usize / crate::hint::LINE {
                 crate::hint::prefetch(last.cast());
             }
         }
