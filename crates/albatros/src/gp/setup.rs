@@ -373,19 +373,7 @@ impl Setup {
 /// above zero): [`Setup::linear_on_face`]'s search for a polygon.
 #[inline(always)]
 fn widest(vs: &[EyeVertex]) -> (f64, usize, usize, usize) {
-    let n = vs.len();
-    let mut best = (0.0, 0, 1, 2);
-    for i in 0..n.min(4) {
-        for j in i + 1..n {
-            for k in j + 1..n {
-                let a = (vs[j].position - vs[i].position).cross(vs[k].position - vs[i].position).length();
-                if a > best.0 {
-                    best = (a, i, j, k);
-                }
-            }
-        }
-    }
-    best
+    widest_by(vs, |a, b| a.cross(b).length())
 }
 
 /// [`widest`] of a polygon whose vertices are all at one depth ([`flat_in_depth`]:
@@ -394,22 +382,30 @@ fn widest(vs: &[EyeVertex]) -> (f64, usize, usize, usize) {
 /// `sqrt(z * z)` of its third, bit for bit. The same areas, so the same triangle,
 /// with about a third of the operations (the search was ~2000 instructions of a
 /// light point's set-up).
-#[allow(clippy::needless_range_loop, reason = "the indices are the answer; as an iterator, 0.06 M more on default")]
 #[inline(always)]
 fn widest_flat(vs: &[EyeVertex]) -> (f64, usize, usize, usize) {
+    // glam's cross product's third coordinate, and its `length()`.
+    widest_by(vs, |a, b| {
+        let z = a.x * b.y - b.x * a.y;
+        (z * z).sqrt()
+    })
+}
+
+/// The search of [`widest`] with the area of the triangle of edges `a`, `b` (from
+/// its first vertex) given by `area`.
+#[allow(clippy::needless_range_loop, reason = "the indices are the answer; as an iterator, 0.06 M more on default")]
+#[inline(always)]
+fn widest_by(vs: &[EyeVertex], area: impl Fn(DVec3, DVec3) -> f64) -> (f64, usize, usize, usize) {
     let n = vs.len();
     let mut best = (0.0, 0, 1, 2);
     for i in 0..n.min(4) {
         let p = vs[i].position;
         for j in i + 1..n {
-            let (ax, ay) = (vs[j].position.x - p.x, vs[j].position.y - p.y);
+            let a = vs[j].position - p;
             for k in j + 1..n {
-                let (bx, by) = (vs[k].position.x - p.x, vs[k].position.y - p.y);
-                // glam's cross product's third coordinate, and its `length()`.
-                let z = ax * by - bx * ay;
-                let a = (z * z).sqrt();
-                if a > best.0 {
-                    best = (a, i, j, k);
+                let s = area(a, vs[k].position - p);
+                if s > best.0 {
+                    best = (s, i, j, k);
                 }
             }
         }

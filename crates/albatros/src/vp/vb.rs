@@ -1820,7 +1820,7 @@ const SOFTPLUS_LANE_MAX: i32 = SOFTPLUS_PADDED as i32 - 2;
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-fn accumulate_log8_avx2<const SITE: u8>(
+fn accumulate_log8_avx2<const F1: u8>(
     codes: &mut [Word8],
     width: usize,
     vis: &Visible,
@@ -1854,16 +1854,16 @@ fn accumulate_log8_avx2<const SITE: u8>(
     // first fragment): the whole cell's in 16-bit lanes.
     if done & 0xFF != visible & 0xFF && done >> 8 != visible >> 8 {
         let words = [
-            encode_half_avx2::<0, CELL_PATH, SITE>(colors, encoder, hidden, visible),
-            encode_half_avx2::<1, CELL_PATH, SITE>(colors, encoder, hidden, visible),
+            encode_half_avx2::<0, CELL_PATH, F1>(colors, encoder, hidden, visible),
+            encode_half_avx2::<1, CELL_PATH, F1>(colors, encoder, hidden, visible),
         ];
         // SAFETY: `cell` holds the cell's rows down to its last one with a visible
         // pixel (just above), each `cols` words from `r * width`.
         #[allow(unsafe_code, reason = "the cell's rows read and written without a bounds check per row")]
         unsafe {
-            let words = f1_cell16_avx2::<SITE>(cell, width, cols, vis, words, sets, f1, ln_area);
-            store_half_avx2::<0, CELL_PATH, SITE>(cell, width, cols, words[0], visible);
-            store_half_avx2::<1, CELL_PATH, SITE>(cell, width, cols, words[1], visible);
+            let words = f1_cell16_avx2::<F1>(cell, width, cols, vis, words, sets, f1, ln_area);
+            store_half_avx2::<0, CELL_PATH, F1>(cell, width, cols, words[0], visible);
+            store_half_avx2::<1, CELL_PATH, F1>(cell, width, cols, words[1], visible);
         }
         return;
     }
@@ -1874,26 +1874,26 @@ fn accumulate_log8_avx2<const SITE: u8>(
     // lanes' shifts and register halves known at compile time (a loop over the
     // halves kept them in registers and the F1 registers on the stack).
     if visible & 0xFF != 0 {
-        let word = encode_half_avx2::<0, HALF_PATH, SITE>(colors, encoder, hidden, visible);
+        let word = encode_half_avx2::<0, HALF_PATH, F1>(colors, encoder, hidden, visible);
         // SAFETY: as for the whole cell's path above.
         #[allow(unsafe_code, reason = "the cell's rows read and written without a bounds check per row")]
         unsafe {
-            let word = f1_half_avx2::<0, SITE>(cell, width, cols, vis, f1, word, ln_s, visible, done);
-            store_half_avx2::<0, HALF_PATH, SITE>(cell, width, cols, word, visible);
+            let word = f1_half_avx2::<0, F1>(cell, width, cols, vis, f1, word, ln_s, visible, done);
+            store_half_avx2::<0, HALF_PATH, F1>(cell, width, cols, word, visible);
         }
     }
     if visible >> 8 != 0 {
-        let word = encode_half_avx2::<1, HALF_PATH, SITE>(colors, encoder, hidden, visible);
+        let word = encode_half_avx2::<1, HALF_PATH, F1>(colors, encoder, hidden, visible);
         // SAFETY: as for the whole cell's path above.
         #[allow(unsafe_code, reason = "the cell's rows read and written without a bounds check per row")]
         unsafe {
-            let word = f1_half_avx2::<1, SITE>(cell, width, cols, vis, f1, word, ln_s, visible, done);
-            store_half_avx2::<1, HALF_PATH, SITE>(cell, width, cols, word, visible);
+            let word = f1_half_avx2::<1, F1>(cell, width, cols, vis, f1, word, ln_s, visible, done);
+            store_half_avx2::<1, HALF_PATH, F1>(cell, width, cols, word, visible);
         }
     }
 }
 
-/// [`accumulate_log8_avx2`]'s callers, its parameter `SITE`: each copy of it has
+/// [`accumulate_log8_avx2`]'s callers, its parameter `F1`: each copy of it has
 /// one caller, so that it is inlined there (called from the two copies of the
 /// colour computers' function, it stayed out of line, a call a cell).
 #[cfg(target_arch = "x86_64")]
