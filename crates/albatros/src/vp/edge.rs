@@ -26,6 +26,8 @@
 
 use serde::Serialize;
 
+use super::spp::VERTEX_COEFFICIENT_LIMIT;
+
 /// Fractional bits of snapped screen coordinates: vertices lie on a 1/256-pixel grid.
 pub const SNAP_BITS: u32 = 8;
 /// One pixel in snapped units.
@@ -50,48 +52,19 @@ const FAST_COORD_BITS: u32 = 26;
 /// (the bounds are worked out there).
 const FLOAT_COORD_BITS: u32 = 21;
 
-/// The flags' word: the last 8 bytes of a code (see [`CODE_LAYOUT`]).
-const FLAGS_OFFSET: usize = 56;
-
-/// Whether a field at `offset` lies in a code's flags' word.
-const fn flag_byte(offset: usize) -> bool {
-    offset >= FLAGS_OFFSET && offset < FLAGS_OFFSET + 8
-}
-
-/// The position of a one-byte field at `offset` in the flags' word, in bits.
-const fn flag_bit(offset: usize) -> u32 {
-    (offset - FLAGS_OFFSET) as u32 * 8
-}
-
-/// Where [`EdgeCode::push_triangle_avx2`] may store a code as two 32-byte halves:
-/// `Some([tg, lr, exact32])`, the bit positions of those three one-byte fields in
-/// the last 8 bytes, when the compiler laid the code out as `origin, slope,
-/// exact.ends | exact.a, exact.b, exact.c, the flags` (64 bytes; what it does
-/// today); `None` for any other layout (then the fields are written one by one).
-const CODE_LAYOUT: Option<[u32; 3]> = {
+// [`EdgeCode::push_triangle_avx2`] stores a code as one 32-byte register: `word,
+// slope, ends[0], ends[1]` (the order of [`EdgeCode`]'s `repr(C)`), each end `x`
+// then `y`.
+const _: () = {
     use std::mem::{offset_of, size_of};
-    let exact = offset_of!(EdgeCode, exact);
-    if size_of::<EdgeCode>() == 64
-        && offset_of!(EdgeCode, origin) == 0
-        && offset_of!(EdgeCode, slope) == 8
-        && exact + offset_of!(ExactLine, ends) == 16
-        && offset_of!((i32, i32), 0) == 0
-        && offset_of!((i32, i32), 1) == 4
-        && exact + offset_of!(ExactLine, a) == 32
-        && exact + offset_of!(ExactLine, b) == 40
-        && exact + offset_of!(ExactLine, c) == 48
-        && flag_byte(offset_of!(EdgeCode, tg))
-        && flag_byte(offset_of!(EdgeCode, lr))
-        && flag_byte(offset_of!(EdgeCode, exact32))
-    {
-        Some([
-            flag_bit(offset_of!(EdgeCode, tg)),
-            flag_bit(offset_of!(EdgeCode, lr)),
-            flag_bit(offset_of!(EdgeCode, exact32)),
-        ])
-    } else {
-        None
-    }
+    assert!(
+        size_of::<EdgeCode>() == 32
+            && offset_of!(EdgeCode, word) == 0
+            && offset_of!(EdgeCode, slope) == 8
+            && offset_of!(EdgeCode, ends) == 16
+            && offset_of!((i32, i32), 0) == 0
+            && offset_of!((i32, i32), 1) == 4
+    );
 };
 
 /// A snapped screen coordinate: pixels in 24.8 fixed point.
@@ -144,22 +117,40 @@ pub enum Tg {
     Vertical = 1,
 }
 
-/// One edge in the VP's code.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+/// [`EdgeCode`]'s word: bit of TG ([`Tg::Vertical`] when set).
+const WORD_TG: i64 = 1 << 0;
+/// [`EdgeCode`]'s word: bit of LR.
+const WORD_LR: i64 = 1 << 1;
+/// [`EdgeCode`]'s word: bit of [`ExactLine::fits_32`].
+const WORD_EXACT32: i64 = 1 << 2;
+/// [`EdgeCode`]'s word: bit of [`EdgeCode::vertex32`].
+const WORD_VERTEX32: i64 = 1 << 3;
+/// [`EdgeCode`]'s word: the bits of V at `t = 0` (all but the low [`ROOT_V_BITS`]:
+/// V is rounded to `2^-ROOT_V_BITS` pixel, so its low `EDGE_FRAC_BITS - ROOT_V_BITS`
+/// = 16 bits are zero, and the flags take three of them).
+const WORD_ORIGIN: i64 = !((1 << (EDGE_FRAC_BITS - ROOT_V_BITS)) - 1);
+
+/// One edge in the VP's code: 32 bytes, half a cache line (the frame list holds
+/// three a triangle, and every VP reads them: at 64 bytes they were two thirds of
+/// the list, BENCHMARKS.md session 18).
+///
+/// Layout (`repr(C)`, 4 x 8 bytes):
+/// - `word`: bits `[63..16]` V at line `t = 0` ([`EdgeCode::origin`], an
+///   [`EdgeCoord`] whose low 16 bits are zero); bit 3 `vertex32`
+///   ([`EdgeCode::vertex32`]); bit 2 `exact32` ([`EdgeCode::exact32`]); bit 1 LR
+///   ([`EdgeCode::lr`]); bit 0 TG ([`EdgeCode::tg`]); bits `[15..4]` zero;
+/// - `slope`: the change of V per pixel of `t`;
+/// - `ends`: the edge's two snapped endpoints in canonical (lexicographic) order,
+///   from which its [`ExactLine`] follows ([`EdgeCode::exact`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[repr(C)]
 pub struct EdgeCode {
-    /// Vertical or horizontal.
-    pub tg: Tg,
-    /// The polygon lies on the side of greater V.
-    pub lr: bool,
-    /// V at line `t = 0`.
-    pub origin: EdgeCoord,
+    /// V at `t = 0` and the flags (see the layout above).
+    word: i64,
     /// Change of V per pixel of `t`.
     pub slope: EdgeCoord,
-    /// The exact line through the snapped endpoints, for [`super::tables::SppMode::Exact`].
-    pub exact: ExactLine,
-    /// [`ExactLine::fits_32`] of `exact`, found once per edge: the SPP's 32-bit path
-    /// for the exact sets at vertex pixels takes the edge without checking per cell.
-    pub exact32: bool,
+    /// The edge's endpoints (snapped units), the smaller `(x, y)` first.
+    pub ends: [(i32, i32); 2],
 }
 
 /// The exact line through an edge's snapped endpoints: `E(x, y) = a x + b y + c`,
@@ -185,6 +176,29 @@ pub const EXACT32_COEFFICIENT_LIMIT: u64 = 1 << 22;
 pub const EXACT32_END_LIMIT: u32 = 1 << 30;
 
 impl ExactLine {
+    /// The line through `ends` (distinct, the smaller `(x, y)` first), oriented
+    /// towards greater V: `E = dy (x - x0) - dx (y - y0)`, negated where needed so that
+    /// `a > 0` for a vertical edge (`|dy| > |dx|`), `b > 0` for a horizontal one.
+    /// The order of the ends does not change the result (only the sign of `dx, dy`,
+    /// which the orientation undoes).
+    #[inline(always)]
+    pub fn through(ends: [(i32, i32); 2]) -> Self {
+        let [(x0, y0), (x1, y1)] = ends;
+        let (dx, dy) = (i64::from(x1) - i64::from(x0), i64::from(y1) - i64::from(y0));
+        Self::oriented(ends, dy.abs() > dx.abs())
+    }
+
+    /// [`ExactLine::through`] of an edge whose TG is known (`vertical`: `|dy| > |dx|`).
+    #[inline(always)]
+    fn oriented(ends: [(i32, i32); 2], vertical: bool) -> Self {
+        let [(x0, y0), (x1, y1)] = ends;
+        let (x0, y0) = (i64::from(x0), i64::from(y0));
+        let (dx, dy) = (i64::from(x1) - x0, i64::from(y1) - y0);
+        let flip = if vertical { dy < 0 } else { dx > 0 };
+        let (a, b) = if flip { (-dy, dx) } else { (dy, -dx) };
+        Self { a, b, c: -(a * x0 + b * y0), ends }
+    }
+
     /// Whether the SPP's 32-bit vertex paths take the line: `|a|, |b|` below
     /// [`EXACT32_COEFFICIENT_LIMIT`] (its 16 subpixel offsets fit 32-bit lanes) and
     /// every endpoint coordinate below [`EXACT32_END_LIMIT`] (its distances to a cell
@@ -441,15 +455,6 @@ impl EdgeCode {
                 _mm256_cvtepi32_epi64($x)
             };
         }
-        let ones = _mm_set1_epi32(-1);
-        let ca = negate_where!(dy, greater);
-        let cb = negate_where!(dx, _mm_xor_si128(greater, ones));
-        // `c = -(ca ax + cb ay)` in 64 bits (`vpmuldq`: the low 32 bits' signed
-        // product; `|ca ax| < 2^43`).
-        let cc = _mm256_sub_epi64(
-            _mm256_setzero_si256(),
-            _mm256_add_epi64(_mm256_mul_epi32(wide!(ca), wide!(ax)), _mm256_mul_epi32(wide!(cb), wide!(ay))),
-        );
         // The ends in (x, y) order: a first where a <= b.
         let a_first =
             _mm_or_si128(_mm_cmpgt_epi32(bx, ax), _mm_andnot_si128(_mm_cmpgt_epi32(ay, by), _mm_cmpeq_epi32(ax, bx)));
@@ -489,88 +494,54 @@ impl EdgeCode {
             q1,
         )));
         let slope = _mm256_sll_epi64(wide!(_mm_sub_epi32(q2, q1)), _mm_cvtsi32_si128(root.slope_shift));
+        // The word: V at t = 0 with TG, LR, `exact32` (always set here: the
+        // coordinates' bound keeps `|a|, |b|` below `EXACT32_COEFFICIENT_LIMIT`) and
+        // `vertex32` in its zero low bits (all-ones lanes masked to their bit).
+        let vertex32 = _mm_cmpgt_epi32(
+            _mm_set1_epi32(VERTEX_COEFFICIENT_LIMIT as i32),
+            _mm_max_epi32(_mm_abs_epi32(dx), _mm_abs_epi32(dy)),
+        );
+        let word = _mm256_or_si256(
+            _mm256_or_si256(origin, _mm256_set1_epi64x(WORD_EXACT32)),
+            _mm256_or_si256(
+                _mm256_or_si256(
+                    _mm256_and_si256(wide!(vertical), _mm256_set1_epi64x(WORD_TG)),
+                    _mm256_and_si256(wide!(lr), _mm256_set1_epi64x(WORD_LR)),
+                ),
+                _mm256_and_si256(wide!(vertex32), _mm256_set1_epi64x(WORD_VERTEX32)),
+            ),
+        );
         out.reserve(3);
         let len = out.len();
-        if CODE_LAYOUT.is_some() {
-            // Each code is two 32-byte halves ([`CODE_LAYOUT`]): the lanes' fields
-            // transposed in registers and stored whole (the stores of the fields one
-            // by one were 48 instructions a triangle, and their reads from the
-            // registers' copies on the stack about as many again).
-            let Some([tg_bit, lr_bit, exact32_bit]) = CODE_LAYOUT else { unreachable!() };
-            // An edge's two ends as one 64-bit lane: x in the low half, y above.
-            macro_rules! pairs {
-                ($x:expr, $y:expr) => {{
-                    let (x, y) = ($x, $y);
-                    _mm256_set_m128i(_mm_unpackhi_epi32(x, y), _mm_unpacklo_epi32(x, y))
-                }};
-            }
-            let (ends0, ends1) = (pairs!(e0x, e0y), pairs!(e1x, e1y));
-            // TG, LR (all-ones lanes masked to a 1 in their byte) and `exact32`.
-            let flags = _mm256_or_si256(
-                _mm256_or_si256(
-                    _mm256_and_si256(wide!(vertical), _mm256_set1_epi64x(1 << tg_bit)),
-                    _mm256_and_si256(wide!(lr), _mm256_set1_epi64x(1 << lr_bit)),
-                ),
-                _mm256_set1_epi64x(1 << exact32_bit),
-            );
-            // Rows `r0..r3` (a field each, lane k edge k) to the first three columns
-            // (edge k's four fields in order).
-            macro_rules! columns {
-                ($r0:expr, $r1:expr, $r2:expr, $r3:expr) => {{
-                    let (t0, t1) = (_mm256_unpacklo_epi64($r0, $r1), _mm256_unpackhi_epi64($r0, $r1));
-                    let (t2, t3) = (_mm256_unpacklo_epi64($r2, $r3), _mm256_unpackhi_epi64($r2, $r3));
-                    [
-                        _mm256_permute2x128_si256::<0x20>(t0, t2),
-                        _mm256_permute2x128_si256::<0x20>(t1, t3),
-                        _mm256_permute2x128_si256::<0x31>(t0, t2),
-                    ]
-                }};
-            }
-            let low = columns!(origin, slope, ends0, ends1);
-            let high = columns!(wide!(ca), wide!(cb), cc, flags);
-            let dst = out.spare_capacity_mut()[..3].as_mut_ptr().cast::<__m256i>();
-            for k in 0..3 {
-                // SAFETY: the three codes' 192 bytes after `len` were reserved; code
-                // `k` is the two 32-byte halves at `2k` and `2k + 1` (unaligned
-                // stores), every field written with a valid value (TG's and the
-                // flags' bytes 0 or 1, the padding zero).
-                #[allow(unsafe_code, reason = "stores of a code's two halves into reserved capacity")]
-                unsafe {
-                    _mm256_storeu_si256(dst.add(2 * k), low[k]);
-                    _mm256_storeu_si256(dst.add(2 * k + 1), high[k]);
-                }
-            }
-        } else {
-            // Out of the lanes: one store per register, the fields read back.
-            let mut lanes64 = [[0i64; 4]; 5];
-            for (slot, v) in lanes64.iter_mut().zip([origin, slope, wide!(ca), wide!(cb), cc]) {
-                // SAFETY: `slot` is 32 bytes, a register's size (an unaligned store).
-                #[allow(unsafe_code, reason = "a store of a register into an array of its size")]
-                unsafe {
-                    _mm256_storeu_si256(slot.as_mut_ptr().cast(), v);
-                }
-            }
-            let mut lanes32 = [[0i32; 4]; 6];
-            for (slot, v) in lanes32.iter_mut().zip([e0x, e0y, e1x, e1y, vertical, lr]) {
-                // SAFETY: `slot` is 16 bytes, a register's size (an unaligned store).
-                #[allow(unsafe_code, reason = "a store of a register into an array of its size")]
-                unsafe {
-                    _mm_storeu_si128(slot.as_mut_ptr().cast(), v);
-                }
-            }
-            let [origin, slope, ca, cb, cc] = lanes64;
-            let [e0x, e0y, e1x, e1y, vertical, lr] = lanes32;
-            // Written into the spare capacity and the length set once (`push` wrote the
-            // length back and checked the capacity for each code).
-            for (k, slot) in out.spare_capacity_mut()[..3].iter_mut().enumerate() {
-                slot.write(Self {
-                    tg: if vertical[k] != 0 { Tg::Vertical } else { Tg::Horizontal },
-                    lr: lr[k] != 0,
-                    origin: EdgeCoord(origin[k]),
-                    slope: EdgeCoord(slope[k]),
-                    exact: ExactLine { a: ca[k], b: cb[k], c: cc[k], ends: [(e0x[k], e0y[k]), (e1x[k], e1y[k])] },
-                    exact32: true,
-                });
+        // Each code is one 32-byte register (its layout asserted above): the lanes' fields
+        // transposed in registers and stored whole (the stores of the fields one
+        // by one were 48 instructions a triangle, and their reads from the
+        // registers' copies on the stack about as many again).
+        // An edge's two ends as one 64-bit lane: x in the low half, y above.
+        macro_rules! pairs {
+            ($x:expr, $y:expr) => {{
+                let (x, y) = ($x, $y);
+                _mm256_set_m128i(_mm_unpackhi_epi32(x, y), _mm_unpacklo_epi32(x, y))
+            }};
+        }
+        let (ends0, ends1) = (pairs!(e0x, e0y), pairs!(e1x, e1y));
+        // Rows `r0..r3` (a field each, lane k edge k) to the first three columns
+        // (edge k's four fields in order).
+        let (t0, t1) = (_mm256_unpacklo_epi64(word, slope), _mm256_unpackhi_epi64(word, slope));
+        let (t2, t3) = (_mm256_unpacklo_epi64(ends0, ends1), _mm256_unpackhi_epi64(ends0, ends1));
+        let codes = [
+            _mm256_permute2x128_si256::<0x20>(t0, t2),
+            _mm256_permute2x128_si256::<0x20>(t1, t3),
+            _mm256_permute2x128_si256::<0x31>(t0, t2),
+        ];
+        let dst = out.spare_capacity_mut()[..3].as_mut_ptr().cast::<__m256i>();
+        for (k, code) in codes.into_iter().enumerate() {
+            // SAFETY: the three codes' 96 bytes after `len` were reserved; code `k`
+            // is the 32 bytes at `k` (an unaligned store), every field written
+            // with a valid value (the word's unused bits zero).
+            #[allow(unsafe_code, reason = "the store of a code into reserved capacity")]
+            unsafe {
+                _mm256_storeu_si256(dst.add(k), code);
             }
         }
         // (Written in place rather than by `extend` of the three, which was not
@@ -633,10 +604,6 @@ impl EdgeCode {
         // product is -dy; for a horizontal edge a + (0, 1), cross product dx.
         let greater_side_positive = if vertical { dy < 0 } else { dx > 0 };
         let lr = greater_side_positive == inside_positive;
-        // E = dy (x - ax) - dx (y - ay), then oriented towards greater V: flipped
-        // exactly where the greater side is the positive one.
-        let (ca, cb) = if greater_side_positive { (-dy, dx) } else { (dy, -dx) };
-        let cc = -(ca * ax + cb * ay);
         let (pa, pb) = ((a.0 .0, a.1 .0), (b.0 .0, b.1 .0));
         let ends = if pa <= pb { [pa, pb] } else { [pb, pa] };
         // Swap to V = coordinate along (u), t = coordinate across (w), from the end
@@ -666,14 +633,7 @@ impl EdgeCode {
         // is below `EXACT32_END_LIMIT`.
         const _: () = assert!(1 << FAST_COORD_BITS <= EXACT32_END_LIMIT);
         let exact32 = (dx.unsigned_abs() | dy.unsigned_abs()) < EXACT32_COEFFICIENT_LIMIT;
-        Some(Self {
-            tg,
-            lr,
-            origin: EdgeCoord(origin),
-            slope: EdgeCoord(slope),
-            exact: ExactLine { a: ca, b: cb, c: cc, ends },
-            exact32,
-        })
+        Some(Self::from_fields(tg, lr, exact32, origin, slope, ends))
     }
 
     /// [`EdgeCode::new`] for any coordinates and root side the numbers support (the
@@ -735,27 +695,100 @@ impl EdgeCode {
         // of two (the fast path takes the quotient as a shift).
         debug_assert_eq!(span % side, 0);
         let slope = (span / side) as i64;
-        // E = dy (x - ax) - dx (y - ay), then oriented towards greater V.
-        let (mut ca, mut cb) = (dy, -dx);
-        let flip = match tg {
-            Tg::Vertical => ca < 0,
-            Tg::Horizontal => cb < 0,
-        };
-        if flip {
-            (ca, cb) = (-ca, -cb);
-        }
-        let cc = -(ca * ax + cb * ay);
         let (pa, pb) = ((a.0 .0, a.1 .0), (b.0 .0, b.1 .0));
         let ends = if pa <= pb { [pa, pb] } else { [pb, pa] };
-        let exact = ExactLine { a: ca, b: cb, c: cc, ends };
-        Some(Self { tg, lr, origin: EdgeCoord(origin), slope: EdgeCoord(slope), exact, exact32: exact.fits_32() })
+        let exact32 = ExactLine::through(ends).fits_32();
+        Some(Self::from_fields(tg, lr, exact32, origin, slope, ends))
+    }
+
+    /// The code of its fields; `origin`'s low 16 bits must be zero (V rounded to
+    /// `2^-ROOT_V_BITS` pixel).
+    #[inline(always)]
+    fn from_fields(tg: Tg, lr: bool, exact32: bool, origin: i64, slope: i64, ends: [(i32, i32); 2]) -> Self {
+        debug_assert_eq!(origin & !WORD_ORIGIN, 0);
+        let flag = |set: bool, bit: i64| if set { bit } else { 0 };
+        let [(x0, y0), (x1, y1)] = ends;
+        let (dx, dy) = (i64::from(x1) - i64::from(x0), i64::from(y1) - i64::from(y0));
+        let vertex32 = exact32 && dx.unsigned_abs().max(dy.unsigned_abs()) < VERTEX_COEFFICIENT_LIMIT as u64;
+        let word = origin
+            | flag(tg == Tg::Vertical, WORD_TG)
+            | flag(lr, WORD_LR)
+            | flag(exact32, WORD_EXACT32)
+            | flag(vertex32, WORD_VERTEX32);
+        Self { word, slope: EdgeCoord(slope), ends }
+    }
+
+    /// TG: vertical or horizontal.
+    #[inline(always)]
+    pub fn tg(&self) -> Tg {
+        if self.word & WORD_TG != 0 {
+            Tg::Vertical
+        } else {
+            Tg::Horizontal
+        }
+    }
+
+    /// LR: the polygon lies on the side of greater V.
+    #[inline(always)]
+    pub fn lr(&self) -> bool {
+        self.word & WORD_LR != 0
+    }
+
+    /// [`ExactLine::fits_32`] of [`EdgeCode::exact`], found once per edge: the SPP's
+    /// 32-bit path for the exact sets at vertex pixels takes the edge without
+    /// checking per cell.
+    #[inline(always)]
+    pub fn exact32(&self) -> bool {
+        self.word & WORD_EXACT32 != 0
+    }
+
+    /// The code with [`EdgeCode::exact32`] cleared (the SPP's tests of its 64-bit
+    /// vertex paths).
+    #[cfg(test)]
+    pub(crate) fn without_exact32(self) -> Self {
+        Self { word: self.word & !WORD_EXACT32, ..self }
+    }
+
+    /// V at line `t = 0`.
+    #[inline(always)]
+    pub fn origin(&self) -> EdgeCoord {
+        EdgeCoord(self.word & WORD_ORIGIN)
+    }
+
+    /// The exact line through the snapped endpoints, for
+    /// [`super::tables::SppMode::Exact`] and the vertex pixels (made from the ends
+    /// where it is needed: a few instructions against 24 more bytes a code).
+    #[inline(always)]
+    pub fn exact(&self) -> ExactLine {
+        ExactLine::oriented(self.ends, self.tg() == Tg::Vertical)
+    }
+
+    /// Whether the SPP's 32-bit vertex words take the edge: [`EdgeCode::exact32`], and
+    /// `|a|, |b|` (`|dy|, |dx|`) below [`VERTEX_COEFFICIENT_LIMIT`] (then
+    /// [`EdgeCode::exact_i32`] is exact).
+    #[inline(always)]
+    pub fn vertex32(&self) -> bool {
+        self.word & WORD_VERTEX32 != 0
+    }
+
+    /// `a, b` of [`EdgeCode::exact`] and its `c` modulo `2^32`, in wrapping 32-bit
+    /// arithmetic: `a, b` exact where [`EdgeCode::vertex32`] holds, and `c` then
+    /// what the SPP's wrapping sums need (fewer instructions than the 64-bit line
+    /// made and narrowed, in the vertex cells of every small polygon).
+    #[inline(always)]
+    pub fn exact_i32(&self) -> (i32, i32, i32) {
+        let [(x0, y0), (x1, y1)] = self.ends;
+        let (dx, dy) = (x1.wrapping_sub(x0), y1.wrapping_sub(y0));
+        let flip = if self.tg() == Tg::Vertical { dy < 0 } else { dx > 0 };
+        let (a, b) = if flip { (dy.wrapping_neg(), dx) } else { (dy, dx.wrapping_neg()) };
+        (a, b, a.wrapping_mul(x0).wrapping_add(b.wrapping_mul(y0)).wrapping_neg())
     }
 
     /// V on the integer pixel line `t` (a row `y = t` for a vertical edge, a column
     /// `x = t` for a horizontal one). Exact.
     #[inline]
     pub fn v_at(&self, t: i64) -> EdgeCoord {
-        EdgeCoord(self.origin.0 + self.slope.0 * t)
+        EdgeCoord(self.origin().0 + self.slope.0 * t)
     }
 }
 
@@ -865,14 +898,7 @@ mod tests {
     }
 
     /// Any code (what [`triangle_avx2`] puts before the appended ones).
-    const DUMMY: EdgeCode = EdgeCode {
-        tg: Tg::Horizontal,
-        lr: false,
-        origin: EdgeCoord(1),
-        slope: EdgeCoord(2),
-        exact: ExactLine { a: 3, b: 4, c: 5, ends: [(6, 7), (8, 9)] },
-        exact32: false,
-    };
+    const DUMMY: EdgeCode = EdgeCode { word: 1 << 16, slope: EdgeCoord(2), ends: [(6, 7), (8, 9)] };
 
     /// The definition's codes of the triangle `pts`, or `None` if two consecutive
     /// points are equal.
@@ -914,13 +940,6 @@ mod tests {
                 proptest::prop_assert!(!within || want.is_none(), "declined {:?}", pts);
             }
         }
-    }
-
-    /// The codes' layout is the one [`EdgeCode::push_triangle_avx2`] stores whole
-    /// (else its tests would check only the fields' one-by-one writes).
-    #[test]
-    fn code_layout_is_known() {
-        assert!(CODE_LAYOUT.is_some());
     }
 
     /// [`EdgeCode::push_triangle_avx2`] on every triangle whose corners take the
@@ -1011,20 +1030,20 @@ mod tests {
         let e2 = EdgeCode::new(b, a, false, 512).unwrap();
         assert_eq!(e1, e2, "same line, same side => same code");
         let e3 = EdgeCode::new(b, a, true, 512).unwrap();
-        assert_eq!((e1.origin, e1.slope, e1.tg), (e3.origin, e3.slope, e3.tg));
-        assert_ne!(e1.lr, e3.lr);
+        assert_eq!((e1.origin(), e1.slope, e1.tg(), e1.exact()), (e3.origin(), e3.slope, e3.tg(), e3.exact()));
+        assert_ne!(e1.lr(), e3.lr());
     }
 
     #[test]
     fn values_are_close_to_the_true_line() {
         let e = EdgeCode::new(p(10.0, 0.0), p(20.0, 100.0), true, 512).unwrap();
-        assert_eq!(e.tg, Tg::Vertical);
+        assert_eq!(e.tg(), Tg::Vertical);
         for t in [0i64, 50, 100, 511] {
             let want = 10.0 + t as f64 * 0.1;
             assert!((e.v_at(t).to_f64() - want).abs() < 1e-4, "t={t}");
         }
         let h = EdgeCode::new(p(0.0, 5.0), p(100.0, 15.0), true, 512).unwrap();
-        assert_eq!(h.tg, Tg::Horizontal);
+        assert_eq!(h.tg(), Tg::Horizontal);
         assert!((h.v_at(50).to_f64() - 10.0).abs() < 1e-4);
     }
 
@@ -1034,7 +1053,7 @@ mod tests {
         // cross product is positive.
         let right = EdgeCode::new(p(0.0, 10.0), p(0.0, 0.0), true, 64).unwrap();
         // Edge x = 0 going up, interior (x > 0): cross((0,-10),(1,0)) = 10 > 0.
-        assert_eq!(right.tg, Tg::Vertical);
-        assert!(right.lr);
+        assert_eq!(right.tg(), Tg::Vertical);
+        assert!(right.lr());
     }
 }

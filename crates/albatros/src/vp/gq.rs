@@ -86,7 +86,7 @@ impl ActiveEdge {
     /// Edge `edge` (`e` itself) in the cell of side `side` pixels at pixel `(x0, y0)`.
     #[inline]
     pub fn at_cell(edge: u32, e: &EdgeCode, x0: i64, y0: i64, side: i64) -> Self {
-        let (t0, origin) = match e.tg {
+        let (t0, origin) = match e.tg() {
             Tg::Vertical => (y0, x0),
             Tg::Horizontal => (x0, y0),
         };
@@ -94,8 +94,8 @@ impl ActiveEdge {
         let (v1, v2) = (e.v_at(t0).0 - origin, e.v_at(t0 + side).0 - origin);
         Self {
             edge,
-            kind: if e.tg == Tg::Vertical { KIND_VERTICAL } else { 0 }
-                | if e.lr { KIND_LR } else { 0 }
+            kind: if e.tg() == Tg::Vertical { KIND_VERTICAL } else { 0 }
+                | if e.lr() { KIND_LR } else { 0 }
                 | if v1 > v2 { KIND_DOWN } else { 0 },
             v1: EdgeCoord(v1),
             v2: EdgeCoord(v2),
@@ -1596,8 +1596,8 @@ fn band_closed(list: &[ActiveEdge], edges: &[EdgeCode], cell: Cell, side: u32) -
     let (lower, upper) = if a.kind & KIND_LR != 0 { (a, b) } else { (b, a) };
     lower.v1.0 - upper.v1.0 >= Q_STEP
         && lower.v2.0 - upper.v2.0 >= Q_STEP
-        && !ends_near(&edges[a.edge as usize].exact, cell.x * side, cell.y * side, side)
-        && !ends_near(&edges[b.edge as usize].exact, cell.x * side, cell.y * side, side)
+        && !ends_near(&edges[a.edge as usize].ends, cell.x * side, cell.y * side, side)
+        && !ends_near(&edges[b.edge as usize].ends, cell.x * side, cell.y * side, side)
 }
 
 /// One edge's codes for the four children of a cell ([`child_codes`]).

@@ -331,7 +331,7 @@ macro_rules! vertex_words_avx2_body {
                     w: std::arch::x86_64::__m256i,
                     offsets: std::arch::x86_64::__m128i,
                     full: [u16; 2]| {
-            if !e.exact32 || (px | py) >= CELL_LIMIT_32 {
+            if !e.exact32() || (px | py) >= CELL_LIMIT_32 {
                 return words_through_memory(w, |words| vertex_words_far(e, px, py, vertical, words));
             }
             use std::arch::x86_64::{
@@ -343,7 +343,6 @@ macro_rules! vertex_words_avx2_body {
             const ONE: i32 = SNAP_ONE;
             const HALF_SUB: i32 = SNAP_ONE / 8;
             const SUB: i32 = SNAP_ONE / 4;
-            let line = &e.exact;
             // No exact sets for pixels whose subpixels are all covered already (`full`,
             // in the words' order: entry 1 pixel `4 y + x` for a vertical edge, entry 0
             // `4 x + y`): nothing of theirs is visible whatever their code.
@@ -352,25 +351,24 @@ macro_rules! vertex_words_avx2_body {
                 return w;
             }
             // The 32-bit numbers below hold for `|a|, |b| < VERTEX_COEFFICIENT_LIMIT`
-            // (every edge shorter than 8192 pixels each way); a longer one goes to
-            // `vertex_words_wide`. One unsigned compare of both coefficients.
-            const LIMIT: i64 = VERTEX_COEFFICIENT_LIMIT;
-            if ((line.a + LIMIT) | (line.b + LIMIT)) as u64 >= (2 * LIMIT) as u64 {
+            // (every edge shorter than 8192 pixels each way: the code's `vertex32`,
+            // found once an edge); a longer one goes to `vertex_words_wide`.
+            if !e.vertex32() {
                 return words_through_memory(w, |words| vertex_words_wide(e, px, py, vertical, words));
             }
-            debug_assert_eq!(line.a >= 0, on_line_greater(line));
+            debug_assert_eq!(e.exact().a >= 0, on_line_greater(&e.exact()));
             // -E at each pixel's first centre, less the threshold (`E >= threshold` is
             // the greater side, as in `vertex_words_sse41`), lanes of words 0 and 1 in one
             // register, of words 2 and 3 in the other, in wrapping 32-bit arithmetic: the
             // value of a vertex pixel is exact ([`VERTEX_COEFFICIENT_LIMIT`]), the others'
             // lanes are not read. About 25 instructions fewer a call than `E` at the cell
             // in 64 bits and the check that its lanes fit 32 bits.
-            let (a, b) = (line.a as i32, line.b as i32);
-            let threshold = i32::from(line.a < 0);
+            let (a, b, c) = e.exact_i32();
+            let threshold = i32::from(a < 0);
             // `px, py < CELL_LIMIT_32`: `px ONE + HALF_SUB < 2^31`.
             let (x0, y0) = (px as i32 * ONE + HALF_SUB, py as i32 * ONE + HALF_SUB);
             let e_cell =
-                a.wrapping_mul(x0).wrapping_add(b.wrapping_mul(y0)).wrapping_add(line.c as i32).wrapping_sub(threshold);
+                a.wrapping_mul(x0).wrapping_add(b.wrapping_mul(y0)).wrapping_add(c).wrapping_sub(threshold);
             // `|a|, |b| < 2^21`: `a ONE` fits.
             let (pixel_x, pixel_y) = (a * ONE, b * ONE);
             let (per_lane, per_word) = if vertical { (pixel_x, pixel_y) } else { (pixel_y, pixel_x) };
@@ -408,7 +406,7 @@ macro_rules! vertex_words_avx2_body {
             // store-to-load forwarding).
             let mut w = w;
             // `greater = !less`; LR = 0 keeps the other side.
-            let flip: u16 = if e.lr { 0 } else { u16::MAX };
+            let flip: u16 = if e.lr() { 0 } else { u16::MAX };
             // In 32 bits: `blsr` then sets the flag the loop tests (as `u16` the
             // compiler tested the word again).
             let mut left = u32::from(near);
@@ -441,7 +439,7 @@ macro_rules! vertex_words_avx2_body {
 /// most `352 (|a| + |b|) < 352 * 2^22 < 2^31`, and a sum that wrapped on the way
 /// (`E` at the cell's first pixel, the steps) ends exact. The 16 subpixel offsets
 /// (`3 * 64 (|a| + |b|)`) fit as they do for [`ExactLine32`].
-const VERTEX_COEFFICIENT_LIMIT: i64 = 1 << 21;
+pub(crate) const VERTEX_COEFFICIENT_LIMIT: i64 = 1 << 21;
 const _: () = assert!(352 * 2 * VERTEX_COEFFICIENT_LIMIT + 1 < 1 << 31);
 const _: () = assert!(SNAP_ONE + VERTEX_MARGIN - SNAP_ONE / 8 == 352);
 
@@ -498,9 +496,8 @@ fn vertex_words_far(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64;
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn vertex_words_cold(e: &EdgeCode, px: u32, py: u32) -> bool {
-    const LIMIT: i64 = VERTEX_COEFFICIENT_LIMIT;
-    let line = &e.exact;
-    !e.exact32 || (px | py) >= CELL_LIMIT_32 || ((line.a + LIMIT) | (line.b + LIMIT)) as u64 >= (2 * LIMIT) as u64
+    // `vertex32` implies `exact32`.
+    !e.vertex32() || (px | py) >= CELL_LIMIT_32
 }
 
 /// The AVX2 fragment code before the clip to the box ([`SubpixelProcessors::edge_code`]),
@@ -540,7 +537,7 @@ macro_rules! table_code_avx2_body {
             let (part_v, part_h) = (spp.row_table.part(Tg::Vertical), spp.row_table.part(Tg::Horizontal));
             for a in active {
                 let e = &edges[a.edge as usize];
-                let vertical = e.tg == Tg::Vertical;
+                let vertical = e.tg() == Tg::Vertical;
                 let index = line_index_lanes_sse41(a.v1.0, e.slope.0);
                 let part = if vertical { part_v } else { part_h };
                 // The edge's sets, a word per pixel line along it (LR = 0: complements).
@@ -559,7 +556,7 @@ macro_rules! table_code_avx2_body {
                 // SAFETY: an entry of `FLIP` is 32 bytes aligned to 32, a register's
                 // size; `usize::from(bool)` is 0 or 1.
                 #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
-                let flip = unsafe { _mm256_load_si256(FLIP.0[usize::from(e.lr)].as_ptr().cast()) };
+                let flip = unsafe { _mm256_load_si256(FLIP.0[usize::from(e.lr())].as_ptr().cast()) };
                 let mut w = _mm256_xor_si256(read, flip);
                 // `rows &= w | keep_rows` and `columns &= w | keep_columns`: a vertical
                 // edge keeps the columns, a horizontal one the rows.
@@ -573,8 +570,8 @@ macro_rules! table_code_avx2_body {
                 // rule replaces the table. The endpoints' offsets from the cell serve
                 // both the test and the vertex pixels.
                 if $vertex_exact {
-                    let offsets = end_offsets_sse2(&e.exact, px, py);
-                    if near_end_cell_at_sse41(&e.exact, px, py, offsets) {
+                    let offsets = end_offsets_sse2(&e.ends, px, py);
+                    if near_end_cell_at_sse41(&e.ends, px, py, offsets) {
                         if vertex_words_cold(e, px, py) {
                             // The cold copy's words ANDed in on their own path: merged
                             // with the others into `w`, the words of every edge went
@@ -982,7 +979,7 @@ impl SubpixelProcessors {
             edges,
             counters,
             |v1, slope| line_indices_sse2(v1, slope),
-            |line, px, py| near_end_cell_sse2(line, px, py),
+            |ends, px, py| near_end_cell_sse2(ends, px, py),
             vertex_words,
         )
     }
@@ -1033,7 +1030,7 @@ impl SubpixelProcessors {
         edges: &[EdgeCode],
         counters: &mut Counters,
         line_indices: impl Fn(i64, i64) -> [usize; 4],
-        near_end: impl Fn(&ExactLine, u32, u32) -> bool,
+        near_end: impl Fn(&[(i32, i32); 2], u32, u32) -> bool,
         vertex_words: impl Fn(&EdgeCode, u32, u32, bool, [u64; 4]) -> [u64; 4],
     ) -> [u16; 16] {
         // The code as pixel rows (word `y`, bits `16 x ..` the pixel `(x, y)`) from the
@@ -1043,7 +1040,7 @@ impl SubpixelProcessors {
         let mut columns = [u64::MAX; 4];
         for a in frag.active {
             let e = &edges[a.edge as usize];
-            let vertical = e.tg == Tg::Vertical;
+            let vertical = e.tg() == Tg::Vertical;
             // q on the five pixel lines of the cell (rows for a vertical edge, columns
             // for a horizontal one), relative to the cell's first pixel column (row),
             // as V1 is; the next pixel across is 8 eighths further, so its q is 8
@@ -1051,15 +1048,15 @@ impl SubpixelProcessors {
             // pixels.
             let index = line_indices(a.v1.0, e.slope.0);
             // The edge's sets, a word per pixel line along it (LR = 0: complements).
-            let part = self.row_table.part(e.tg);
-            let flip = if e.lr { 0 } else { u64::MAX };
+            let part = self.row_table.part(e.tg());
+            let flip = if e.lr() { 0 } else { u64::MAX };
             let mut words = [0u64; 4];
             for (w, i) in words.iter_mut().zip(index) {
                 *w = part[i] ^ flip;
             }
             // The pixels of this cell near an endpoint of the edge, where the exact
             // rule replaces the table (about one edge in seven on default: out of line).
-            if self.vertex_exact && near_end(&e.exact, frag.px, frag.py) {
+            if self.vertex_exact && near_end(&e.ends, frag.px, frag.py) {
                 words = vertex_words(e, frag.px, frag.py, vertical, words);
             }
             let code = if vertical { &mut rows } else { &mut columns };
@@ -1091,7 +1088,7 @@ impl SubpixelProcessors {
         for a in frag.active {
             let e = &edges[a.edge as usize];
             for (pixel, c) in code.iter_mut().enumerate() {
-                *c &= exact_set(&e.exact, e.lr, frag.px + (pixel as u32 & 3), frag.py + (pixel as u32 >> 2));
+                *c &= exact_set(&e.exact(), e.lr(), frag.px + (pixel as u32 & 3), frag.py + (pixel as u32 >> 2));
             }
         }
         if STATS {
@@ -1466,10 +1463,10 @@ const VERTEX_MARGIN: i32 = SNAP_ONE / 2;
 /// Whether one of the edge's endpoints lies in pixel `(x, y)` or within
 /// [`VERTEX_MARGIN`] of it (the rule [`vertex_pixels`] applies to a whole cell).
 #[cfg(test)]
-fn near_end(line: &ExactLine, x: u32, y: u32) -> bool {
+fn near_end(ends: &[(i32, i32); 2], x: u32, y: u32) -> bool {
     let (x0, y0) = (x as i32 * SNAP_ONE - VERTEX_MARGIN, y as i32 * SNAP_ONE - VERTEX_MARGIN);
     let (x1, y1) = ((x as i32 + 1) * SNAP_ONE + VERTEX_MARGIN, (y as i32 + 1) * SNAP_ONE + VERTEX_MARGIN);
-    line.ends.iter().any(|&(ex, ey)| ex >= x0 && ex <= x1 && ey >= y0 && ey <= y1)
+    ends.iter().any(|&(ex, ey)| ex >= x0 && ex <= x1 && ey >= y0 && ey <= y1)
 }
 
 /// The vertex pixels of an edge in the 4x4 cell at pixel `(px, py)`: bit `4 y + x`
@@ -1477,7 +1474,7 @@ fn near_end(line: &ExactLine, x: u32, y: u32) -> bool {
 /// [`VERTEX_MARGIN`] of it. Per endpoint the pixels form a rectangle: the columns
 /// whose widened span holds its x times the rows whose widened span holds its y.
 #[inline]
-fn vertex_pixels(line: &ExactLine, px: u32, py: u32) -> u16 {
+fn vertex_pixels(ends: &[(i32, i32); 2], px: u32, py: u32) -> u16 {
     const ONE: i64 = SNAP_ONE as i64;
     const MARGIN: i64 = VERTEX_MARGIN as i64;
     // The pixels `d` (0..4) of the cell's row or column from pixel `p` whose widened
@@ -1491,7 +1488,7 @@ fn vertex_pixels(line: &ExactLine, px: u32, py: u32) -> u16 {
         ((1u16 << last) - 1) & (0xF << first)
     };
     let mut pixels = 0u16;
-    for &(ex, ey) in &line.ends {
+    for &(ex, ey) in ends {
         let (cols, rows) = (span(ex, px), span(ey, py));
         // Row bit `y` to nibble `y`, times the four column bits.
         let spread = (rows & 1) | (rows & 2) << 3 | (rows & 4) << 6 | (rows & 8) << 9;
@@ -1503,17 +1500,17 @@ fn vertex_pixels(line: &ExactLine, px: u32, py: u32) -> u16 {
 /// [`vertex_pixels`], in SSE4.1 when the processor has it and the numbers are small
 /// enough for 32-bit lanes ([`vertex_pixels_sse41`]).
 #[inline(always)]
-fn vertex_pixels_fast(line: &ExactLine, px: u32, py: u32) -> u16 {
+fn vertex_pixels_fast(ends: &[(i32, i32); 2], px: u32, py: u32) -> u16 {
     #[cfg(target_arch = "x86_64")]
-    if std::is_x86_feature_detected!("sse4.1") && VertexWindow::fits(line, px, py) {
+    if std::is_x86_feature_detected!("sse4.1") && VertexWindow::fits(ends, px, py) {
         // SAFETY: `vertex_pixels_sse41` only needs SSE4.1 (and the SSSE3 it implies),
         // which the processor was just found to have.
         #[allow(unsafe_code, reason = "a function compiled for SSE4.1, after detection")]
         unsafe {
-            return vertex_pixels_sse41(line, px, py);
+            return vertex_pixels_sse41(ends, px, py);
         }
     }
-    vertex_pixels(line, px, py)
+    vertex_pixels(ends, px, py)
 }
 
 /// The rule of [`vertex_pixels`] as a window of bits: with `t` a coordinate less the
@@ -1542,14 +1539,14 @@ impl VertexWindow {
     /// bits: coordinates and cell borders below `2^30` in size (screens are at most
     /// `2^13` pixels, `2^21` snapped units).
     #[inline(always)]
-    fn fits(line: &ExactLine, px: u32, py: u32) -> bool {
+    fn fits(ends: &[(i32, i32); 2], px: u32, py: u32) -> bool {
         const LIMIT: u32 = 1 << 30;
         let small = |c: i32| c.unsigned_abs() < LIMIT;
         (px | py) < LIMIT / SNAP_ONE as u32
-            && small(line.ends[0].0)
-            && small(line.ends[0].1)
-            && small(line.ends[1].0)
-            && small(line.ends[1].1)
+            && small(ends[0].0)
+            && small(ends[0].1)
+            && small(ends[1].0)
+            && small(ends[1].1)
     }
 }
 
@@ -1558,8 +1555,8 @@ impl VertexWindow {
 /// 25 instructions against some 120. Needs [`VertexWindow::fits`].
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "sse4.1")]
-fn vertex_pixels_sse41(line: &ExactLine, px: u32, py: u32) -> u16 {
-    vertex_spread(vertex_windows_sse41(line, px, py), false)
+fn vertex_pixels_sse41(ends: &[(i32, i32); 2], px: u32, py: u32) -> u16 {
+    vertex_spread(vertex_windows_sse41(ends, px, py), false)
 }
 
 /// The vertex pixels from the endpoints' windows ([`vertex_windows_sse41`]): bit
@@ -1579,7 +1576,7 @@ fn vertex_spread([first, second]: [u64; 2], transposed: bool) -> u16 {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "sse4.1")]
 #[inline]
-fn vertex_windows_sse41(line: &ExactLine, px: u32, py: u32) -> [u64; 2] {
+fn vertex_windows_sse41(ends: &[(i32, i32); 2], px: u32, py: u32) -> [u64; 2] {
     use std::arch::x86_64::{
         _mm_add_epi32, _mm_and_si128, _mm_cmpeq_epi32, _mm_cvtsi128_si64, _mm_extract_epi64, _mm_max_epi32,
         _mm_min_epi32, _mm_or_si128, _mm_set1_epi32, _mm_set_epi32, _mm_set_epi8, _mm_setzero_si128, _mm_shuffle_epi8,
@@ -1587,7 +1584,7 @@ fn vertex_windows_sse41(line: &ExactLine, px: u32, py: u32) -> [u64; 2] {
     };
     const ONE_BITS: i32 = SNAP_ONE.trailing_zeros() as i32;
     let (x0, y0) = (px as i32 * SNAP_ONE - VERTEX_MARGIN, py as i32 * SNAP_ONE - VERTEX_MARGIN);
-    let ends = _mm_set_epi32(line.ends[1].1, line.ends[1].0, line.ends[0].1, line.ends[0].0);
+    let ends = _mm_set_epi32(ends[1].1, ends[1].0, ends[0].1, ends[0].0);
     let t = _mm_sub_epi32(ends, _mm_set_epi32(y0, x0, y0, x0));
     let exact = _mm_cmpeq_epi32(_mm_and_si128(t, _mm_set1_epi32(SNAP_ONE - 1)), _mm_setzero_si128());
     let g = _mm_add_epi32(_mm_srai_epi32::<ONE_BITS>(t), _mm_set1_epi32(1));
@@ -1770,19 +1767,19 @@ fn exact_into_sse2(
 /// `x0 <= e <= x0 + span` as one unsigned compare of `e - x0` (in `i64`: no wrap),
 /// both endpoints without a branch.
 #[inline(always)]
-pub fn ends_near(line: &ExactLine, px: u32, py: u32, side: u32) -> bool {
+pub fn ends_near(ends: &[(i32, i32); 2], px: u32, py: u32, side: u32) -> bool {
     let span = (i64::from(side) * i64::from(SNAP_ONE) + 2 * i64::from(VERTEX_MARGIN)) as u64;
     let x0 = i64::from(px) * i64::from(SNAP_ONE) - i64::from(VERTEX_MARGIN);
     let y0 = i64::from(py) * i64::from(SNAP_ONE) - i64::from(VERTEX_MARGIN);
     let within = |(ex, ey): (i32, i32)| ((i64::from(ex) - x0) as u64 <= span) & ((i64::from(ey) - y0) as u64 <= span);
-    within(line.ends[0]) | within(line.ends[1])
+    within(ends[0]) | within(ends[1])
 }
 
 /// [`ends_near`] of the 4x4 cell at pixel `(px, py)`: whether the cell has a vertex
 /// pixel of the edge.
 #[inline(always)]
-fn near_end_cell(line: &ExactLine, px: u32, py: u32) -> bool {
-    ends_near(line, px, py, CELL_SIDE)
+fn near_end_cell(ends: &[(i32, i32); 2], px: u32, py: u32) -> bool {
+    ends_near(ends, px, py, CELL_SIDE)
 }
 
 /// [`near_end_cell`] out of line, for [`near_end_cell_sse2`]'s cells beyond its 32-bit
@@ -1790,8 +1787,8 @@ fn near_end_cell(line: &ExactLine, px: u32, py: u32) -> bool {
 /// for every fragment of the AVX2 fragment code, some 10 instructions each.
 #[cold]
 #[inline(never)]
-fn near_end_cell_far(line: &ExactLine, px: u32, py: u32) -> bool {
-    near_end_cell(line, px, py)
+fn near_end_cell_far(ends: &[(i32, i32); 2], px: u32, py: u32) -> bool {
+    near_end_cell(ends, px, py)
 }
 
 /// [`near_end_cell`] in SSE2, the four coordinates at once: each `e - x0`, biased by
@@ -1802,17 +1799,17 @@ fn near_end_cell_far(line: &ExactLine, px: u32, py: u32) -> bool {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "sse2")]
 #[inline]
-fn near_end_cell_sse2(line: &ExactLine, px: u32, py: u32) -> bool {
+fn near_end_cell_sse2(ends: &[(i32, i32); 2], px: u32, py: u32) -> bool {
     use std::arch::x86_64::{
         _mm_castsi128_ps, _mm_cmpgt_epi32, _mm_movemask_ps, _mm_set1_epi32, _mm_set_epi32, _mm_sub_epi32,
     };
     if (px | py) >= CELL_LIMIT_32 {
-        return near_end_cell_far(line, px, py);
+        return near_end_cell_far(ends, px, py);
     }
     const SPAN: i32 = CELL_SIDE as i32 * SNAP_ONE + 2 * VERTEX_MARGIN;
     let (x0, y0) = (px as i32 * SNAP_ONE - VERTEX_MARGIN, py as i32 * SNAP_ONE - VERTEX_MARGIN);
     let base = _mm_set_epi32(y0 ^ i32::MIN, x0 ^ i32::MIN, y0 ^ i32::MIN, x0 ^ i32::MIN);
-    let [(ax, ay), (bx, by)] = line.ends;
+    let [(ax, ay), (bx, by)] = *ends;
     let biased = _mm_sub_epi32(_mm_set_epi32(by, bx, ay, ax), base);
     let within = _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpgt_epi32(_mm_set1_epi32((SPAN + 1) ^ i32::MIN), biased)));
     // Both coordinates of one endpoint: bits 0 and 1, or 2 and 3.
@@ -1825,7 +1822,7 @@ fn near_end_cell_sse2(line: &ExactLine, px: u32, py: u32) -> bool {
 #[inline(never)]
 fn vertex_words(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64; 4]) -> [u64; 4] {
     #[cfg(target_arch = "x86_64")]
-    if e.exact32 && (px | py) < CELL_LIMIT_32 {
+    if e.exact32() && (px | py) < CELL_LIMIT_32 {
         if has_avx512() {
             // SAFETY: `vertex_words_avx512` only needs the features `has_avx512`
             // just found the processor to have.
@@ -1852,9 +1849,9 @@ fn vertex_words(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64; 4])
         }
     }
     let mut words = words;
-    let vertex = vertex_pixels_fast(&e.exact, px, py);
+    let vertex = vertex_pixels_fast(&e.ends, px, py);
     if vertex != 0 {
-        exact_into(&e.exact, e.lr, px, py, vertex, vertical, &mut words);
+        exact_into(&e.exact(), e.lr(), px, py, vertex, vertical, &mut words);
     }
     words
 }
@@ -1871,14 +1868,14 @@ const CELL_LIMIT_32: u32 = EXACT32_END_LIMIT / SNAP_ONE as u32;
 #[target_feature(enable = "sse4.1")]
 fn vertex_words_sse41(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64; 4]) -> [u64; 4] {
     let mut words = words;
-    let vertex = vertex_pixels_sse41(&e.exact, px, py);
+    let vertex = vertex_pixels_sse41(&e.ends, px, py);
     if vertex != 0 {
         // An edge's line is oriented with `a > 0` (vertical) or `b > 0` (horizontal),
         // so `a == 0` only with `b > 0`: the centres on the line are on the greater
         // side exactly when `a >= 0` (the rule of `exact_set`).
-        debug_assert_eq!(e.exact.a >= 0, on_line_greater(&e.exact));
-        let threshold = i64::from(e.exact.a < 0);
-        exact_into_sse2(&e.exact, e.lr, threshold, px, py, vertex, vertical, &mut words);
+        debug_assert_eq!(e.exact().a >= 0, on_line_greater(&e.exact()));
+        let threshold = i64::from(e.exact().a < 0);
+        exact_into_sse2(&e.exact(), e.lr(), threshold, px, py, vertex, vertical, &mut words);
     }
     words
 }
@@ -1935,7 +1932,7 @@ struct VertexStart {
 #[target_feature(enable = "sse4.1")]
 #[inline]
 fn vertex_start(line: &ExactLine, px: u32, py: u32, vertical: bool) -> Option<VertexStart> {
-    vertex_start_at(line, px, py, vertical, vertex_spread(vertex_windows_sse41(line, px, py), !vertical))
+    vertex_start_at(line, px, py, vertical, vertex_spread(vertex_windows_sse41(&line.ends, px, py), !vertical))
 }
 
 /// [`vertex_start`] with the vertex pixels `near` found (in the words' order).
@@ -1962,13 +1959,13 @@ fn vertex_start_at(line: &ExactLine, px: u32, py: u32, vertical: bool, near: u16
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "sse2")]
 #[inline]
-fn end_offsets_sse2(line: &ExactLine, px: u32, py: u32) -> std::arch::x86_64::__m128i {
+fn end_offsets_sse2(ends: &[(i32, i32); 2], px: u32, py: u32) -> std::arch::x86_64::__m128i {
     use std::arch::x86_64::{_mm_set_epi32, _mm_sub_epi32};
     // Wrapping: far cells (beyond `CELL_LIMIT_32`) take other paths, which do not
     // read these lanes.
     let p = |p: u32| (p as i32).wrapping_mul(SNAP_ONE).wrapping_sub(VERTEX_MARGIN);
     let (x0, y0) = (p(px), p(py));
-    let [(ax, ay), (bx, by)] = line.ends;
+    let [(ax, ay), (bx, by)] = *ends;
     _mm_sub_epi32(_mm_set_epi32(by, bx, ay, ax), _mm_set_epi32(y0, x0, y0, x0))
 }
 
@@ -1981,10 +1978,10 @@ fn end_offsets_sse2(line: &ExactLine, px: u32, py: u32) -> std::arch::x86_64::__
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "sse4.1")]
 #[inline]
-fn near_end_cell_at_sse41(line: &ExactLine, px: u32, py: u32, t: std::arch::x86_64::__m128i) -> bool {
+fn near_end_cell_at_sse41(ends: &[(i32, i32); 2], px: u32, py: u32, t: std::arch::x86_64::__m128i) -> bool {
     use std::arch::x86_64::{_mm_cmpeq_epi32, _mm_cmpeq_epi64, _mm_min_epu32, _mm_set1_epi32, _mm_testz_si128};
     if (px | py) >= CELL_LIMIT_32 {
-        return near_end_cell_far(line, px, py);
+        return near_end_cell_far(ends, px, py);
     }
     const SPAN: i32 = CELL_SIDE as i32 * SNAP_ONE + 2 * VERTEX_MARGIN;
     let within = _mm_cmpeq_epi32(_mm_min_epu32(t, _mm_set1_epi32(SPAN)), t);
@@ -2096,7 +2093,7 @@ fn vertex_words_avx2(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64
     // SAFETY: `words` is 32 bytes aligned to 32, a register's size.
     #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
     let w = unsafe { _mm256_load_si256(words.0.as_ptr().cast()) };
-    let w = vertex_words_avx2_body!(e, px, py, vertical, w, end_offsets_sse2(&e.exact, px, py), [0; 2]);
+    let w = vertex_words_avx2_body!(e, px, py, vertical, w, end_offsets_sse2(&e.ends, px, py), [0; 2]);
     let mut out = Aligned32([0u64; 4]);
     // SAFETY: `out` is 32 bytes aligned to 32, a register's size.
     #[allow(unsafe_code, reason = "an aligned store into an array of a register's size")]
@@ -2158,7 +2155,7 @@ fn vertex_words_avx512(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u
         _mm512_set1_epi64, _mm512_set_epi32, _mm512_set_epi64, _mm_cvtsi32_si128,
     };
     const SUB: i64 = (SNAP_ONE / 4) as i64;
-    let line = &e.exact;
+    let line = &e.exact();
     let Some(VertexStart { near, e_cell, per_lane, per_word }) = vertex_start(line, px, py, vertical) else {
         return words;
     };
@@ -2193,7 +2190,7 @@ fn vertex_words_avx512(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u
         less = _mm256_mask_broadcastw_epi16(less, bit, set);
     }
     // `greater = !less`; LR = 0 keeps the other side.
-    let sets = _mm256_xor_si256(less, _mm256_set1_epi16(if e.lr { -1 } else { 0 }));
+    let sets = _mm256_xor_si256(less, _mm256_set1_epi16(if e.lr() { -1 } else { 0 }));
     let w = _mm256_set_epi64x(words[3] as i64, words[2] as i64, words[1] as i64, words[0] as i64);
     let w = _mm256_mask_blend_epi16(near, w, sets);
     [
@@ -2557,18 +2554,18 @@ mod tests {
                 ends[0] = (d(ends[0].0) + next(3) - 1, d(ends[0].1) + next(3) - 1);
             }
             let line = ExactLine { a: 1, b: 0, c: 0, ends };
-            let pixels = vertex_pixels(&line, px, py);
-            assert_eq!(vertex_pixels_fast(&line, px, py), pixels, "ends {ends:?}, cell ({px}, {py})");
+            let pixels = vertex_pixels(&line.ends, px, py);
+            assert_eq!(vertex_pixels_fast(&line.ends, px, py), pixels, "ends {ends:?}, cell ({px}, {py})");
             for pixel in 0..16u32 {
-                let near = near_end(&line, px + (pixel & 3), py + (pixel >> 2));
+                let near = near_end(&line.ends, px + (pixel & 3), py + (pixel >> 2));
                 assert_eq!(pixels >> pixel & 1 == 1, near, "ends {ends:?}, cell ({px}, {py}), pixel {pixel}");
             }
-            assert_eq!(pixels != 0, near_end_cell(&line, px, py), "ends {ends:?}, cell ({px}, {py})");
+            assert_eq!(pixels != 0, near_end_cell(&line.ends, px, py), "ends {ends:?}, cell ({px}, {py})");
             #[cfg(target_arch = "x86_64")]
             {
                 // SAFETY: x86-64 always has SSE2.
                 #[allow(unsafe_code, reason = "a function compiled for SSE2, on x86-64")]
-                let got = unsafe { near_end_cell_sse2(&line, px, py) };
+                let got = unsafe { near_end_cell_sse2(&line.ends, px, py) };
                 assert_eq!(got, pixels != 0, "SSE2: ends {ends:?}, cell ({px}, {py})");
             }
         }
@@ -2594,7 +2591,11 @@ mod tests {
             };
             let ends = [(coordinate(px), coordinate(py)), (coordinate(px), coordinate(py))];
             let line = ExactLine { a: 1, b: 0, c: 0, ends };
-            assert_eq!(vertex_pixels_fast(&line, px, py), vertex_pixels(&line, px, py), "{ends:?} ({px}, {py})");
+            assert_eq!(
+                vertex_pixels_fast(&line.ends, px, py),
+                vertex_pixels(&line.ends, px, py),
+                "{ends:?} ({px}, {py})"
+            );
         }
     }
 
@@ -2628,14 +2629,14 @@ mod tests {
             };
             let ends = [(coordinate(px), coordinate(py)), (coordinate(px), coordinate(py))];
             let line = ExactLine { a: 1, b: 0, c: 0, ends };
-            assert!(VertexWindow::fits(&line, px, py));
-            let plain = vertex_pixels(&line, px, py);
+            assert!(VertexWindow::fits(&line.ends, px, py));
+            let plain = vertex_pixels(&line.ends, px, py);
             for vertical in [false, true] {
                 // SAFETY: the processor has what `has_avx2` asks (and the SSE4.1 it implies).
                 #[allow(unsafe_code, reason = "functions compiled for AVX2 and SSE4.1, after detection")]
                 let (got, table) = unsafe {
                     (
-                        vertex_near_avx2(end_offsets_sse2(&line, px, py), vertical),
+                        vertex_near_avx2(end_offsets_sse2(&line.ends, px, py), vertical),
                         vertex_start(&line, px, py, vertical).map_or(0, |s| s.near),
                     )
                 };
@@ -2675,13 +2676,13 @@ mod tests {
             let line = ExactLine { a: 1, b: 0, c: 0, ends };
             // SAFETY: x86-64 always has SSE2.
             #[allow(unsafe_code, reason = "a function compiled for SSE2, on x86-64")]
-            let got = unsafe { near_end_cell_sse2(&line, px, py) };
-            assert_eq!(got, near_end_cell(&line, px, py), "{ends:?} ({px}, {py})");
+            let got = unsafe { near_end_cell_sse2(&line.ends, px, py) };
+            assert_eq!(got, near_end_cell(&line.ends, px, py), "{ends:?} ({px}, {py})");
             if std::is_x86_feature_detected!("sse4.1") {
                 // SAFETY: the processor was just found to have SSE4.1 (and SSE2).
                 #[allow(unsafe_code, reason = "functions compiled for SSE4.1, after detection")]
-                let got = unsafe { near_end_cell_at_sse41(&line, px, py, end_offsets_sse2(&line, px, py)) };
-                assert_eq!(got, near_end_cell(&line, px, py), "{ends:?} ({px}, {py}), offsets");
+                let got = unsafe { near_end_cell_at_sse41(&line.ends, px, py, end_offsets_sse2(&line.ends, px, py)) };
+                assert_eq!(got, near_end_cell(&line.ends, px, py), "{ends:?} ({px}, {py}), offsets");
             }
         }
     }
@@ -2718,17 +2719,17 @@ mod tests {
         let mut code = [FULL; 16];
         for a in frag.active {
             let e = &edges[a.edge as usize];
-            let vertex = if spp.vertex_exact { vertex_pixels(&e.exact, frag.px, frag.py) } else { 0 };
+            let vertex = if spp.vertex_exact { vertex_pixels(&e.ends, frag.px, frag.py) } else { 0 };
             // V1 relative to the cell's first pixel column (row), as the GQ gives it.
             let q: [i32; 5] = std::array::from_fn(|k| round_q(a.v1.0 + e.slope.0 * k as i64));
-            let part = table.half(e.tg, e.lr);
-            let mut sets = match e.tg {
+            let part = table.half(e.tg(), e.lr());
+            let mut sets = match e.tg() {
                 Tg::Vertical => edge_sets::<true>(part, &q),
                 Tg::Horizontal => edge_sets::<false>(part, &q),
             };
             for (pixel, set) in sets.iter_mut().enumerate() {
                 if vertex >> pixel & 1 == 1 {
-                    *set = exact_set(&e.exact, e.lr, frag.px + (pixel as u32 & 3), frag.py + (pixel as u32 >> 2));
+                    *set = exact_set(&e.exact(), e.lr(), frag.px + (pixel as u32 & 3), frag.py + (pixel as u32 >> 2));
                 }
             }
             for (c, s) in code.iter_mut().zip(sets) {
@@ -2871,26 +2872,26 @@ mod tests {
             };
             let (a, b) = (point(true), point(k % 3 == 0));
             let Some(e) = EdgeCode::new(a, b, k % 2 == 0, 8192) else { continue };
-            assert_eq!(e.exact.a >= 0, on_line_greater(&e.exact), "{e:?}");
-            long += usize::from(!e.exact32);
+            assert_eq!(e.exact().a >= 0, on_line_greater(&e.exact()), "{e:?}");
+            long += usize::from(!e.exact32());
             // The 32-bit edges that the AVX2 path hands to `vertex_words_wide`.
-            let coefficients = e.exact.a.unsigned_abs().max(e.exact.b.unsigned_abs());
+            let coefficients = e.exact().a.unsigned_abs().max(e.exact().b.unsigned_abs());
             wide += usize::from(
-                e.exact32 && coefficients >= VERTEX_COEFFICIENT_LIMIT as u64 && vertex_pixels(&e.exact, px, py) != 0,
+                e.exact32() && coefficients >= VERTEX_COEFFICIENT_LIMIT as u64 && vertex_pixels(&e.ends, px, py) != 0,
             );
             let words: [u64; 4] = std::array::from_fn(|_| next(i64::MAX) as u64 ^ (next(2) as u64) << 63);
             for vertical in [false, true] {
                 let mut want = words;
-                let vertex = vertex_pixels(&e.exact, px, py);
+                let vertex = vertex_pixels(&e.ends, px, py);
                 for pixel in 0..16 {
                     if vertex >> pixel & 1 == 1 {
-                        let set = exact_set(&e.exact, e.lr, px + (pixel & 3), py + (pixel >> 2));
+                        let set = exact_set(&e.exact(), e.lr(), px + (pixel & 3), py + (pixel >> 2));
                         put_set(&mut want, pixel, vertical, set);
                     }
                 }
                 assert_eq!(vertex_words(&e, px, py, vertical, words), want, "{e:?} ({px}, {py})");
                 #[cfg(target_arch = "x86_64")]
-                if e.exact32 {
+                if e.exact32() {
                     // Each SIMD path the processor has, whichever `vertex_words` takes.
                     if std::is_x86_feature_detected!("sse4.1") {
                         // SAFETY: the processor has SSE4.1.
@@ -2914,7 +2915,7 @@ mod tests {
                         avx512 += 1;
                     }
                 }
-                let checked = EdgeCode { exact32: false, ..e };
+                let checked = e.without_exact32();
                 assert_eq!(vertex_words(&checked, px, py, vertical, words), want, "{e:?} ({px}, {py})");
             }
         }
@@ -3038,11 +3039,11 @@ mod tests {
             let cells = side / CELL_SIDE;
             let any = (0..cells * cells).any(|i| {
                 let (x, y) = (px + CELL_SIDE * (i % cells), py + CELL_SIDE * (i / cells));
-                vertex_pixels(&e.exact, x, y) != 0
+                vertex_pixels(&e.ends, x, y) != 0
             });
-            assert_eq!(ends_near(&e.exact, px, py, side), any, "side {side}, cell ({px}, {py}), {:?}", e.exact.ends);
+            assert_eq!(ends_near(&e.ends, px, py, side), any, "side {side}, cell ({px}, {py}), {:?}", e.exact().ends);
             if side == CELL_SIDE {
-                assert_eq!(ends_near(&e.exact, px, py, side), near_end_cell(&e.exact, px, py));
+                assert_eq!(ends_near(&e.ends, px, py, side), near_end_cell(&e.ends, px, py));
             }
         }
     }
