@@ -424,60 +424,84 @@ impl MapAvx2<'_> {
             return [self.top_avx2(u[0], v[0]), self.top_avx2(u[1], v[1])];
         }
         let level = [self.level_avx2(u[0], v[0], texels[0]), self.level_avx2(u[1], v[1], texels[1])];
-        // (Both look-ups written out, not an array's `map` of a closure: the closure
-        // compiled out of line whenever the code units were laid out differently,
-        // +9.7 M instructions on default.)
         // Every lane of both groups guessed in one level (that of lane 0, at most
-        // `n`): its constants from the map's table.
+        // `n`), and guessed right: the common case (96 % of default's whole
+        // textured cells), its constants from the map's table. The tests are made
+        // before the look-ups, so that the exact levels `k` are not kept across
+        // them (the branch is predicted: the look-ups need not wait for the ROM).
         let first = _mm256_broadcastd_epi32(_mm256_castsi256_si128(level[0].guess));
         let one_level = _mm256_movemask_epi8(_mm256_and_si256(
             _mm256_cmpeq_epi32(level[0].guess, first),
             _mm256_cmpeq_epi32(level[1].guess, first),
         )) == -1;
-        let guess = _mm256_cvtsi256_si32(level[0].guess) as usize;
-        let fine = if one_level {
-            let lanes = self.level_lanes(guess);
-            [
-                self.bilinear_in_avx2(lanes, level[0].fu, level[0].fv),
-                self.bilinear_in_avx2(lanes, level[1].fu, level[1].fv),
-            ]
-        } else {
-            [
-                self.bilinear_avx2(level[0].guess, level[0].fu, level[0].fv),
-                self.bilinear_avx2(level[1].guess, level[1].fu, level[1].fv),
-            ]
-        };
-        let guessed = _mm256_and_si256(
+        let guessed = _mm256_movemask_epi8(_mm256_and_si256(
             _mm256_cmpeq_epi32(level[0].guess, level[0].k),
             _mm256_cmpeq_epi32(level[1].guess, level[1].k),
-        );
-        let guessed = _mm256_movemask_epi8(guessed) == -1;
-        let (k, fine) = if guessed {
-            ([level[0].guess, level[1].guess], fine)
-        } else {
-            let exact = [
-                self.bilinear_avx2(level[0].k, level[0].fu, level[0].fv),
-                self.bilinear_avx2(level[1].k, level[1].fu, level[1].fv),
-            ];
-            ([level[0].k, level[1].k], exact)
-        };
+        )) == -1;
+        if !(one_level && guessed) {
+            return self.sample2_levels_avx2(u[0], u[1], v[0], v[1], texels[0], texels[1]);
+        }
+        let guess = _mm256_cvtsi256_si32(level[0].guess) as usize;
+        let (kr0, kr1) = (level[0].kr, level[1].kr);
+        let zero = _mm256_setzero_ps();
+        let blends = _mm256_or_ps(_mm256_cmp_ps::<_CMP_NEQ_UQ>(kr0, zero), _mm256_cmp_ps::<_CMP_NEQ_UQ>(kr1, zero));
+        let blends = _mm256_movemask_ps(blends) != 0;
+        // (Both look-ups written out, not an array's `map` of a closure: the closure
+        // compiled out of line whenever the code units were laid out differently,
+        // +9.7 M instructions on default.)
+        let lanes = self.level_lanes(guess);
+        let fine = [
+            self.bilinear_in_avx2(lanes, level[0].fu, level[0].fv),
+            self.bilinear_in_avx2(lanes, level[1].fu, level[1].fv),
+        ];
+        if !blends {
+            return fine;
+        }
+        // The next level (or `n` again, [`Self::coarser_avx2`]) in every lane.
+        let lanes = self.level_lanes(guess + usize::from(guess < self.map.log2_side as usize));
+        let coarse = [
+            self.bilinear_in_avx2(lanes, level[0].fu, level[0].fv),
+            self.bilinear_in_avx2(lanes, level[1].fu, level[1].fv),
+        ];
+        [
+            _mm256_add_ps(fine[0], _mm256_mul_ps(kr0, _mm256_sub_ps(coarse[0], fine[0]))),
+            _mm256_add_ps(fine[1], _mm256_mul_ps(kr1, _mm256_sub_ps(coarse[1], fine[1]))),
+        ]
+    }
+
+    /// [`Self::sample2_avx2`] of groups (`u0`, `v0`, `texels0`) and (`u1`, `v1`,
+    /// `texels1`) whose levels are not all one level or not all guessed right:
+    /// their levels found again, then each lane's look-ups in its level `k` and
+    /// the next. Out of line (4 % of default's whole textured cells), so that its
+    /// registers are not the common case's; the levels found again from the
+    /// inputs, not passed (an array of them passed by reference was written to
+    /// the stack in every cell, ~14 stores).
+    #[target_feature(enable = "avx2")]
+    #[inline(never)]
+    #[cold]
+    fn sample2_levels_avx2(
+        &self,
+        u0: __m256,
+        u1: __m256,
+        v0: __m256,
+        v1: __m256,
+        texels0: __m256,
+        texels1: __m256,
+    ) -> [__m256; 2] {
+        let level = [self.level_avx2(u0, v0, texels0), self.level_avx2(u1, v1, texels1)];
+        let fine = [
+            self.bilinear_avx2(level[0].k, level[0].fu, level[0].fv),
+            self.bilinear_avx2(level[1].k, level[1].fu, level[1].fv),
+        ];
         let (kr0, kr1) = (level[0].kr, level[1].kr);
         let zero = _mm256_setzero_ps();
         let blends = _mm256_or_ps(_mm256_cmp_ps::<_CMP_NEQ_UQ>(kr0, zero), _mm256_cmp_ps::<_CMP_NEQ_UQ>(kr1, zero));
         if _mm256_movemask_ps(blends) == 0 {
             return fine;
         }
-        let coarse = if one_level && guessed {
-            // The next level (or `n` again, [`Self::coarser_avx2`]) in every lane.
-            let lanes = self.level_lanes(guess + usize::from(guess < self.map.log2_side as usize));
-            [
-                self.bilinear_in_avx2(lanes, level[0].fu, level[0].fv),
-                self.bilinear_in_avx2(lanes, level[1].fu, level[1].fv),
-            ]
-        } else {
-            let (k0, k1) = (self.coarser_avx2(k[0]), self.coarser_avx2(k[1]));
-            [self.bilinear_avx2(k0, level[0].fu, level[0].fv), self.bilinear_avx2(k1, level[1].fu, level[1].fv)]
-        };
+        let (k0, k1) = (self.coarser_avx2(level[0].k), self.coarser_avx2(level[1].k));
+        let coarse =
+            [self.bilinear_avx2(k0, level[0].fu, level[0].fv), self.bilinear_avx2(k1, level[1].fu, level[1].fv)];
         [
             _mm256_add_ps(fine[0], _mm256_mul_ps(kr0, _mm256_sub_ps(coarse[0], fine[0]))),
             _mm256_add_ps(fine[1], _mm256_mul_ps(kr1, _mm256_sub_ps(coarse[1], fine[1]))),
