@@ -318,13 +318,25 @@ impl VideoProcessor {
             for (i, poly) in frame.polygons.iter().enumerate() {
                 if let Some(later) = box_of(i + POLYGONS_AHEAD) {
                     boxes[(i + POLYGONS_AHEAD) % BOXES] = later;
-                    // Not next to the last box asked for: a neighbour's memory is in
-                    // the caches already (terrain's triangles follow one another
-                    // across the ground; `many`'s lie anywhere).
-                    if !STATS && share.meets_columns(later[0], later[1]) && !near(later, asked) {
+                    if !STATS && share.meets_columns(later[0], later[1]) {
+                        // The SPP's masks and the polygon's edges, for every polygon:
+                        // a neighbour's box shares only some of their lines, and the
+                        // first read of each cell's mask in a frame, and of each edge
+                        // by the GQ's start, waited on memory (terrain, where the
+                        // triangles follow one another across the ground: the SPP's
+                        // mask load ~30 % of its copy's samples, the start's edge
+                        // read ~8 % of the descent's; session 18).
                         spp.prefetch_box(later);
-                        sink.ahead(later);
-                        asked = later;
+                        for e in frame.edges_of(&frame.polygons[i + POLYGONS_AHEAD]) {
+                            crate::hint::prefetch((e as *const EdgeCode).cast());
+                        }
+                        // The VB's words only when not next to the last box asked for:
+                        // a neighbour's memory is in the caches already (`many`'s
+                        // triangles lie anywhere).
+                        if !near(later, asked) {
+                            sink.ahead(later);
+                            asked = later;
+                        }
                     }
                 }
                 let index = (s, i);
