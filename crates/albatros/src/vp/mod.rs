@@ -327,9 +327,14 @@ impl VideoProcessor {
                         // mask load ~30 % of its copy's samples, the start's edge
                         // read ~8 % of the descent's; session 18).
                         spp.prefetch_box(later);
-                        for e in frame.edges_of(&frame.polygons[i + POLYGONS_AHEAD]) {
-                            crate::hint::prefetch((e as *const EdgeCode).cast());
+                        // (A triangle's three 32-byte codes span two or three lines:
+                        // every line from the first byte, and the last byte's.)
+                        let edges = frame.edges_of(&frame.polygons[i + POLYGONS_AHEAD]);
+                        let (first, bytes) = (edges.as_ptr().cast::<u8>(), std::mem::size_of_val(edges));
+                        for offset in (0..bytes).step_by(crate::hint::LINE) {
+                            crate::hint::prefetch(first.wrapping_add(offset));
                         }
+                        crate::hint::prefetch(first.wrapping_add(bytes.saturating_sub(1)));
                         // The VB's words only when not next to the last box asked for:
                         // a neighbour's memory is in the caches already (`many`'s
                         // triangles lie anywhere).
