@@ -774,7 +774,8 @@ impl EdgeCode {
     /// `a, b` of [`EdgeCode::exact`] and its `c` modulo `2^32`, in wrapping 32-bit
     /// arithmetic: `a, b` exact where [`EdgeCode::vertex32`] holds, and `c` then
     /// what the SPP's wrapping sums need (fewer instructions than the 64-bit line
-    /// made and narrowed, in the vertex cells of every small polygon).
+    /// made and narrowed, in the vertex cells of every small polygon: the narrowed
+    /// line was +2.1 M instructions on terrain's raster, +0.5 M on default's).
     #[inline(always)]
     pub fn exact_i32(&self) -> (i32, i32, i32) {
         let [(x0, y0), (x1, y1)] = self.ends;

@@ -381,6 +381,23 @@ impl TextureMap {
 }
 
 #[cfg(target_arch = "x86_64")]
+/// The lanes where the trilinear blend takes the coarser level: `kr != 0` (either
+/// zero's sign is none; `kr` is never NaN).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn blends_avx2(kr: __m256) -> __m256 {
+    _mm256_cmp_ps::<_CMP_NEQ_UQ>(kr, _mm256_setzero_ps())
+}
+
+/// The trilinear blend of the two levels' bilinear values: `fine + kr (coarse - fine)`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn trilinear_avx2(fine: __m256, coarse: __m256, kr: __m256) -> __m256 {
+    _mm256_add_ps(fine, _mm256_mul_ps(kr, _mm256_sub_ps(coarse, fine)))
+}
+
 impl MapAvx2<'_> {
     /// [`TextureMap::sample_lanes`] of eight pixels in AVX2 registers, bit for bit:
     /// the same operations in the same order, the TAC's `log2` ROM by
@@ -403,13 +420,12 @@ impl MapAvx2<'_> {
             (level.k, self.bilinear_avx2(level.k, level.fu, level.fv))
         };
         let kr = level.kr;
-        // `kr == 0` in every lane (either zero's sign: `kr` is never NaN).
-        if _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_NEQ_UQ>(kr, _mm256_setzero_ps())) == 0 {
+        if _mm256_movemask_ps(blends_avx2(kr)) == 0 {
             return fine;
         }
         let k = self.coarser_avx2(k);
         let coarse = self.bilinear_avx2(k, level.fu, level.fv);
-        _mm256_add_ps(fine, _mm256_mul_ps(kr, _mm256_sub_ps(coarse, fine)))
+        trilinear_avx2(fine, coarse, kr)
     }
 
     /// [`Self::sample_avx2`] of two groups of eight pixels side by side (a whole
@@ -443,9 +459,7 @@ impl MapAvx2<'_> {
         }
         let guess = _mm256_cvtsi256_si32(level[0].guess) as usize;
         let (kr0, kr1) = (level[0].kr, level[1].kr);
-        let zero = _mm256_setzero_ps();
-        let blends = _mm256_or_ps(_mm256_cmp_ps::<_CMP_NEQ_UQ>(kr0, zero), _mm256_cmp_ps::<_CMP_NEQ_UQ>(kr1, zero));
-        let blends = _mm256_movemask_ps(blends) != 0;
+        let blends = _mm256_movemask_ps(_mm256_or_ps(blends_avx2(kr0), blends_avx2(kr1))) != 0;
         // (Both look-ups written out, not an array's `map` of a closure: the closure
         // compiled out of line whenever the code units were laid out differently,
         // +9.7 M instructions on default.)
@@ -463,10 +477,7 @@ impl MapAvx2<'_> {
             self.bilinear_in_avx2(lanes, level[0].fu, level[0].fv),
             self.bilinear_in_avx2(lanes, level[1].fu, level[1].fv),
         ];
-        [
-            _mm256_add_ps(fine[0], _mm256_mul_ps(kr0, _mm256_sub_ps(coarse[0], fine[0]))),
-            _mm256_add_ps(fine[1], _mm256_mul_ps(kr1, _mm256_sub_ps(coarse[1], fine[1]))),
-        ]
+        [trilinear_avx2(fine[0], coarse[0], kr0), trilinear_avx2(fine[1], coarse[1], kr1)]
     }
 
     /// [`Self::sample2_avx2`] of groups (`u0`, `v0`, `texels0`) and (`u1`, `v1`,
@@ -494,18 +505,13 @@ impl MapAvx2<'_> {
             self.bilinear_avx2(level[1].k, level[1].fu, level[1].fv),
         ];
         let (kr0, kr1) = (level[0].kr, level[1].kr);
-        let zero = _mm256_setzero_ps();
-        let blends = _mm256_or_ps(_mm256_cmp_ps::<_CMP_NEQ_UQ>(kr0, zero), _mm256_cmp_ps::<_CMP_NEQ_UQ>(kr1, zero));
-        if _mm256_movemask_ps(blends) == 0 {
+        if _mm256_movemask_ps(_mm256_or_ps(blends_avx2(kr0), blends_avx2(kr1))) == 0 {
             return fine;
         }
         let (k0, k1) = (self.coarser_avx2(level[0].k), self.coarser_avx2(level[1].k));
         let coarse =
             [self.bilinear_avx2(k0, level[0].fu, level[0].fv), self.bilinear_avx2(k1, level[1].fu, level[1].fv)];
-        [
-            _mm256_add_ps(fine[0], _mm256_mul_ps(kr0, _mm256_sub_ps(coarse[0], fine[0]))),
-            _mm256_add_ps(fine[1], _mm256_mul_ps(kr1, _mm256_sub_ps(coarse[1], fine[1]))),
-        ]
+        [trilinear_avx2(fine[0], coarse[0], kr0), trilinear_avx2(fine[1], coarse[1], kr1)]
     }
 
     /// The lanes whose footprint in level-0 texels `texels` is at least `2^(n+1)`
