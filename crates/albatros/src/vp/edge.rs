@@ -734,6 +734,15 @@ impl EdgeCode {
         self.word & WORD_LR != 0
     }
 
+    /// TG and LR as one number, `TG + 2 LR` (TG 1 for [`Tg::Vertical`], LR 1 for
+    /// [`EdgeCode::lr`]): the index of the SPP's table of an edge's words by its flags,
+    /// in one mask of the word.
+    #[inline(always)]
+    pub fn tg_lr(&self) -> usize {
+        const _: () = assert!(WORD_TG == 1 && WORD_LR == 2);
+        (self.word & (WORD_TG | WORD_LR)) as usize
+    }
+
     /// [`ExactLine::fits_32`] of [`EdgeCode::exact`], found once per edge: the SPP's
     /// 32-bit path for the exact sets at vertex pixels takes the edge without
     /// checking per cell.
