@@ -320,10 +320,12 @@ const _: () = assert!((ROW_Q_COUNT - 1) * (ROW_Q_COUNT + 1) < ROW_PART_WORDS);
 /// and gives the edge's four words in a register (`$words`, a `__m256i`): given and
 /// taken as `[u64; 4]`, the compiler stored the words as two 16-byte halves and the
 /// caller read them back as one 32-byte load, which no store forwarded (6 % of
-/// `process_avx2`'s time on default).
+/// `process_avx2`'s time on default). `$taken` (a constant) says the caller has found
+/// that the edge and cell are not for the cold copies ([`vertex_words_cold`]): the
+/// body's own test of them then folds.
 #[cfg(target_arch = "x86_64")]
 macro_rules! vertex_words_avx2_body {
-    ($e:expr, $px:expr, $py:expr, $vertical:expr, $words:expr, $offsets:expr, $full:expr) => {{
+    ($e:expr, $px:expr, $py:expr, $vertical:expr, $words:expr, $offsets:expr, $full:expr, $taken:expr) => {{
         let body = |e: &EdgeCode,
                     px: u32,
                     py: u32,
@@ -331,7 +333,9 @@ macro_rules! vertex_words_avx2_body {
                     w: std::arch::x86_64::__m256i,
                     offsets: std::arch::x86_64::__m128i,
                     full: [u16; 2]| {
-            if !e.exact32() || (px | py) >= CELL_LIMIT_32 {
+            // (`$taken`, a constant: the caller found the edge and cell not for the
+            // cold copies, [`vertex_words_cold`], and this test folds.)
+            if !$taken && (!e.exact32() || (px | py) >= CELL_LIMIT_32) {
                 return words_through_memory(w, |words| vertex_words_far(e, px, py, vertical, words));
             }
             use std::arch::x86_64::{
@@ -584,7 +588,7 @@ macro_rules! table_code_avx2_body {
                             columns = _mm256_and_si256(columns, _mm256_or_si256(w, keep_columns));
                             continue;
                         }
-                        w = vertex_words_avx2_body!(e, px, py, vertical, w, offsets, full);
+                        w = vertex_words_avx2_body!(e, px, py, vertical, w, offsets, full, true);
                     }
                 }
                 rows = _mm256_and_si256(rows, _mm256_or_si256(w, keep_rows));
@@ -2096,7 +2100,7 @@ fn vertex_words_avx2(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64
     // SAFETY: `words` is 32 bytes aligned to 32, a register's size.
     #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
     let w = unsafe { _mm256_load_si256(words.0.as_ptr().cast()) };
-    let w = vertex_words_avx2_body!(e, px, py, vertical, w, end_offsets_sse2(&e.ends, px, py), [0; 2]);
+    let w = vertex_words_avx2_body!(e, px, py, vertical, w, end_offsets_sse2(&e.ends, px, py), [0; 2], false);
     let mut out = Aligned32([0u64; 4]);
     // SAFETY: `out` is 32 bytes aligned to 32, a register's size.
     #[allow(unsafe_code, reason = "an aligned store into an array of a register's size")]
