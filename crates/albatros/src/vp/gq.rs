@@ -1174,8 +1174,13 @@ impl CellProcessors {
             }
             let (start, end) = (c as usize * stride, ends[c as usize]);
             // Only cells of two edges can close ([`band_closed`]): their length first,
-            // before the list is sliced.
+            // before the list is sliced. Not a last-level cell: closed, it is one
+            // fragment whose code comes out empty, and the test of every such cell of
+            // two edges cost more than the fragments it saved (terrain, a frame: ~3,900
+            // of ~140,000 such cells closed; raster 296.5 → 293.5 M instructions, the
+            // rendering VP's 453.7 → 452.1 M; default 87.4 → 86.1 M and 188.4 → 187.3 M).
             if FILL
+                && !(LAST || child_level == self.root_level)
                 && end - start == 2
                 && band_closed(&self.lists[block + start..block + end], poly.edges, child_cell, self.side(child_level))
             {
@@ -1580,7 +1585,8 @@ const Q_STEP: i64 = 1 << (EDGE_FRAC_BITS - SPP_V_BITS);
 /// disjoint too. The exact rule of the vertex pixels samples lines where the table's
 /// rounding no longer applies, so a cell near either edge's end is left to the SPPs.
 /// Cells of three edges or more are not tested: on `terrain` and `many` the pairs
-/// cost more than they saved (BENCHMARKS.md, session 8).
+/// cost more than they saved (BENCHMARKS.md, session 8); nor are last-level cells,
+/// where a closed cell is a single empty fragment (session 19).
 ///
 /// A modern shortcut beside the machine's GQ (whose CI/CRI codes are per edge),
 /// taken with counting off only ([`CellProcessors::descend_filling`]): the same

@@ -320,10 +320,12 @@ const _: () = assert!((ROW_Q_COUNT - 1) * (ROW_Q_COUNT + 1) < ROW_PART_WORDS);
 /// and gives the edge's four words in a register (`$words`, a `__m256i`): given and
 /// taken as `[u64; 4]`, the compiler stored the words as two 16-byte halves and the
 /// caller read them back as one 32-byte load, which no store forwarded (6 % of
-/// `process_avx2`'s time on default).
+/// `process_avx2`'s time on default). `$taken` (a constant) says the caller has found
+/// that the edge and cell are not for the cold copies ([`vertex_words_cold`]): the
+/// body's own test of them then folds.
 #[cfg(target_arch = "x86_64")]
 macro_rules! vertex_words_avx2_body {
-    ($e:expr, $px:expr, $py:expr, $vertical:expr, $words:expr, $offsets:expr, $full:expr) => {{
+    ($e:expr, $px:expr, $py:expr, $vertical:expr, $words:expr, $offsets:expr, $full:expr, $taken:expr) => {{
         let body = |e: &EdgeCode,
                     px: u32,
                     py: u32,
@@ -331,7 +333,9 @@ macro_rules! vertex_words_avx2_body {
                     w: std::arch::x86_64::__m256i,
                     offsets: std::arch::x86_64::__m128i,
                     full: [u16; 2]| {
-            if !e.exact32() || (px | py) >= CELL_LIMIT_32 {
+            // (`$taken`, a constant: the caller found the edge and cell not for the
+            // cold copies, [`vertex_words_cold`], and this test folds.)
+            if !$taken && (!e.exact32() || (px | py) >= CELL_LIMIT_32) {
                 return words_through_memory(w, |words| vertex_words_far(e, px, py, vertical, words));
             }
             use std::arch::x86_64::{
@@ -553,19 +557,22 @@ macro_rules! table_code_avx2_body {
                     word(_mm_extract_epi16::<1>(index) as usize),
                     word(_mm_extract_epi16::<0>(index) as usize),
                 );
-                // SAFETY: an entry of `FLIP` is 32 bytes aligned to 32, a register's
-                // size; `usize::from(bool)` is 0 or 1.
-                #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
-                let flip = unsafe { _mm256_load_si256(FLIP.0[usize::from(e.lr())].as_ptr().cast()) };
-                let mut w = _mm256_xor_si256(read, flip);
-                // `rows &= w | keep_rows` and `columns &= w | keep_columns`: a vertical
-                // edge keeps the columns, a horizontal one the rows.
-                let keep = &KEEP.0[usize::from(vertical)];
-                // SAFETY: `keep` is two registers' words, 64 bytes aligned to 32, the
-                // 2 x 32 bytes the aligned loads read.
+                // The flip by LR, and `rows &= w | keep_rows`, `columns &= w |
+                // keep_columns` (a vertical edge keeps the columns, a horizontal one
+                // the rows): three registers of one entry.
+                let [flip, keep_rows, keep_columns, _] = &TG_LR_WORDS.0[e.tg_lr()];
+                // SAFETY: each of the entry's rows is 32 bytes aligned to 32 (an
+                // aligned array of 32-byte rows), the 3 x 32 bytes the aligned loads
+                // read.
                 #[allow(unsafe_code, reason = "aligned loads of arrays of a register's size")]
-                let (keep_rows, keep_columns) =
-                    unsafe { (_mm256_load_si256(keep[0].as_ptr().cast()), _mm256_load_si256(keep[1].as_ptr().cast())) };
+                let (flip, keep_rows, keep_columns) = unsafe {
+                    (
+                        _mm256_load_si256(flip.as_ptr().cast()),
+                        _mm256_load_si256(keep_rows.as_ptr().cast()),
+                        _mm256_load_si256(keep_columns.as_ptr().cast()),
+                    )
+                };
+                let mut w = _mm256_xor_si256(read, flip);
                 // The pixels of this cell near an endpoint of the edge, where the exact
                 // rule replaces the table. The endpoints' offsets from the cell serve
                 // both the test and the vertex pixels.
@@ -581,7 +588,7 @@ macro_rules! table_code_avx2_body {
                             columns = _mm256_and_si256(columns, _mm256_or_si256(w, keep_columns));
                             continue;
                         }
-                        w = vertex_words_avx2_body!(e, px, py, vertical, w, offsets, full);
+                        w = vertex_words_avx2_body!(e, px, py, vertical, w, offsets, full, true);
                     }
                 }
                 rows = _mm256_and_si256(rows, _mm256_or_si256(w, keep_rows));
@@ -2093,7 +2100,7 @@ fn vertex_words_avx2(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64
     // SAFETY: `words` is 32 bytes aligned to 32, a register's size.
     #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
     let w = unsafe { _mm256_load_si256(words.0.as_ptr().cast()) };
-    let w = vertex_words_avx2_body!(e, px, py, vertical, w, end_offsets_sse2(&e.ends, px, py), [0; 2]);
+    let w = vertex_words_avx2_body!(e, px, py, vertical, w, end_offsets_sse2(&e.ends, px, py), [0; 2], false);
     let mut out = Aligned32([0u64; 4]);
     // SAFETY: `out` is 32 bytes aligned to 32, a register's size.
     #[allow(unsafe_code, reason = "an aligned store into an array of a register's size")]
@@ -2103,20 +2110,28 @@ fn vertex_words_avx2(e: &EdgeCode, px: u32, py: u32, vertical: bool, words: [u64
     out.0
 }
 
-/// [`table_code_avx2_body`]'s flip of an edge's words by its LR (entry `usize::from(lr)`):
-/// all ones for LR = 0 (the complements), none for LR = 1. A load where the mask
-/// had been made from the LR byte (a broadcast and a compare: 2 instructions an
-/// edge more).
+/// [`table_code_avx2_body`]'s words for an edge's TG and LR, entry
+/// [`EdgeCode::tg_lr`] (`TG + 2 LR`, TG 1 for [`Tg::Vertical`]): the flip of its
+/// words by its LR (all ones for LR = 0, the complements; none for LR = 1), then the
+/// words that keep the rows and the columns (a horizontal edge's words AND into the
+/// columns only, a vertical one's into the rows: `rows &= w | keep_rows`), then a
+/// fourth register's padding (entries of 128 bytes: the index is a shift). One index
+/// for the three loads: it had been two tables, by LR and by TG, each index made from
+/// the flags on its own (a shift and a mask each). Loads where the masks had been made
+/// from the flags (a broadcast and a compare, two `andn`: 5 instructions an edge
+/// more).
 #[cfg(target_arch = "x86_64")]
-static FLIP: Aligned32<[[u64; 4]; 2]> = Aligned32([[u64::MAX; 4], [0; 4]]);
-
-/// [`table_code_avx2_body`]'s words that keep the rows and the columns (entry
-/// `usize::from(vertical)`, then rows, columns): a horizontal edge's words AND into the
-/// columns only, a vertical one's into the rows (`rows &= w | keep_rows`). Loads where
-/// the `along` mask had been made from the TG byte and applied with two `andn`: 3
-/// instructions an edge more.
-#[cfg(target_arch = "x86_64")]
-static KEEP: Aligned32<[[[u64; 4]; 2]; 2]> = Aligned32([[[u64::MAX; 4], [0; 4]], [[0; 4], [u64::MAX; 4]]]);
+static TG_LR_WORDS: Aligned32<[[[u64; 4]; 4]; 4]> = {
+    const ALL: [u64; 4] = [u64::MAX; 4];
+    const NONE: [u64; 4] = [0; 4];
+    // `[flip, keep_rows, keep_columns, padding]`.
+    Aligned32([
+        [ALL, ALL, NONE, NONE],  // horizontal, LR = 0
+        [ALL, NONE, ALL, NONE],  // vertical, LR = 0
+        [NONE, ALL, NONE, NONE], // horizontal, LR = 1
+        [NONE, NONE, ALL, NONE], // vertical, LR = 1
+    ])
+};
 
 /// [`vertex_words_avx2`]'s blend masks: entry `i` selects the 16-bit lane `i`.
 #[cfg(target_arch = "x86_64")]
