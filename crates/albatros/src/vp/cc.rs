@@ -218,7 +218,20 @@ impl<'a> ColorComputers<'a> {
     #[target_feature(enable = "avx2")]
     #[inline(never)]
     fn prepare_avx2(&mut self, poly: &'a FramePolygon) {
-        self.prepared = Some(PolyAvx2::new(self, poly));
+        // (A match, not `and_then` with a closure: that stayed a call.)
+        let drawn = match self.set_up(poly) {
+            Some(t) => self.textures.get(t.map).map(|map| (t, map)),
+            None => None,
+        };
+        let footprint_scale = self.footprint_scale;
+        let prepared = self.prepared.insert(PolyAvx2::new(self, poly, drawn.map(|(t, _)| t)));
+        // The texture set apart, in place and only with a texture drawn: made
+        // with the rest as one `Option` (a `map`), its ~400 bytes were copied for
+        // every polygon, with a texture or not (terrain, nearly all untextured:
+        // ~60 instructions a polygon).
+        if let Some((t, map)) = drawn {
+            prepared.texture = Some(TextureAvx2::new(footprint_scale, t, map));
+        }
     }
 
     /// The texture set-up of `poly` ([`FrameList::texture_of`]).
@@ -464,6 +477,32 @@ struct TextureAvx2<'a> {
     color2: [__m256; 3],
 }
 
+#[cfg(target_arch = "x86_64")]
+impl<'a> TextureAvx2<'a> {
+    /// The set-up of the texture `t` whose map is `map`, `footprint_scale` the
+    /// colour computers' `2 delta`.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn new(footprint_scale: f32, t: &PolyTexture, map: &'a TextureMap) -> Self {
+        Self {
+            map: map.avx2(),
+            footprint_scale: _mm256_set1_ps(footprint_scale),
+            par: _mm256_set1_ps(t.par),
+            color1: splat3(t.color1),
+            color2: splat3(t.color2),
+        }
+    }
+}
+
+/// A colour's components, each in every lane of a register.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn splat3(c: Vec3) -> [__m256; 3] {
+    let [r, g, b] = c.to_array();
+    [_mm256_set1_ps(r), _mm256_set1_ps(g), _mm256_set1_ps(b)]
+}
+
 /// [`PolyAvx2::front`]'s values of eight pixels.
 #[cfg(target_arch = "x86_64")]
 struct Front {
@@ -477,18 +516,15 @@ struct Front {
 
 #[cfg(target_arch = "x86_64")]
 impl<'a> PolyAvx2<'a> {
-    /// The set-up of `poly` under `cc`'s registers.
+    /// The set-up of `poly` under `cc`'s registers, with the texture set-up `drawn`
+    /// when its map exists, but no texture ([`TextureAvx2::new`], which the
+    /// caller adds).
     #[target_feature(enable = "avx2")]
     #[inline]
-    fn new(cc: &ColorComputers<'a>, poly: &'a FramePolygon) -> Self {
-        // (A match, not `and_then` with a closure: that stayed a call.)
-        let drawn = match cc.set_up(poly) {
-            Some(t) => cc.textures.get(t.map).map(|map| (t, map)),
-            None => None,
-        };
+    fn new(cc: &ColorComputers<'a>, poly: &'a FramePolygon, drawn: Option<&PolyTexture>) -> Self {
         let none = FracLin::default();
         let (u, v) = match drawn {
-            Some((t, _)) => (t.u, t.v),
+            Some(t) => (t.u, t.v),
             None => (none, none),
         };
         let f = [poly.inv_z, poly.intensity, u, v];
@@ -507,15 +543,6 @@ impl<'a> PolyAvx2<'a> {
                 b_dy[half][i] = _mm256_mul_ps(_mm256_set1_ps(f[i].b), dy);
             }
         }
-        // A colour's components, each in every lane.
-        let splat3 = |c: Vec3| c.to_array().map(|c| _mm256_set1_ps(c));
-        let texture = drawn.map(|(t, map)| TextureAvx2 {
-            map: map.avx2(),
-            footprint_scale: _mm256_set1_ps(cc.footprint_scale),
-            par: _mm256_set1_ps(t.par),
-            color1: splat3(t.color1),
-            color2: splat3(t.color2),
-        });
         Self {
             poly,
             a: _mm_setr_ps(f[0].a, f[1].a, f[2].a, f[3].a),
@@ -523,7 +550,7 @@ impl<'a> PolyAvx2<'a> {
             c: _mm_setr_ps(f[0].c, f[1].c, f[2].c, f[3].c),
             a_dx,
             b_dy,
-            texture,
+            texture: None,
             color: splat3(poly.color),
             fog: splat3(cc.fog_color),
             inv_visibility: _mm256_set1_ps(cc.inv_visibility),

@@ -187,10 +187,16 @@ impl TacRom {
         // does (`maxps` returns its second operand when either is NaN).
         let s = _mm256_mul_ps(x, _mm256_set1_ps(FOG_STEPS_PER_UNIT as f32));
         let s = _mm256_min_ps(_mm256_max_ps(s, _mm256_setzero_ps()), _mm256_set1_ps(full as f32));
-        let k = _mm256_min_epu32(small_int_avx2(_mm256_floor_ps(s)), _mm256_set1_epi32(full as i32));
+        // `s` is in `0 ..= full` (no NaN), so `k` is too: [`Self::fog_lanes`]'s
+        // clamp of `k` to `full`, and [`entries_avx2`]'s to the ROM's last entry but
+        // one (`full`), leave it as it is (terrain: ~0.7 M instructions a frame).
+        let k = small_int_avx2(_mm256_floor_ps(s));
         let t = _mm256_sub_ps(s, _mm256_cvtepi32_ps(k));
         debug_assert!(self.fog_table().len() == full as usize + 2);
-        let (a, b) = window_entries_avx2(&self.fog[..], k);
+        // SAFETY: every lane of `k` is at most `full`, the fog ROM's last entry but
+        // one (just above).
+        #[allow(unsafe_code, reason = "a ROM read at entries known to be inside it")]
+        let (a, b) = unsafe { window_entries_avx2(&self.fog[..], k) };
         _mm256_add_ps(a, _mm256_mul_ps(t, _mm256_sub_ps(b, a)))
     }
 
@@ -313,13 +319,32 @@ pub(crate) fn small_int_avx2(x: __m256) -> __m256i {
 /// city 71.5 → 69.7 M). The `log2` ROM keeps the loads: a footprint's mantissa
 /// moves faster than `Z` (its square), and its window missed in most half cells
 /// (default +0.4 M).
+///
+/// # Safety
+///
+/// Every lane of `k` must be at most the ROM's last entry but one (the window's
+/// loads read from lane 0's entry: the clamp it had cost ~2 instructions a half
+/// cell, where the fog's `k` is clamped already).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-fn window_entries_avx2(padded: &[f32], k: __m256i) -> (__m256, __m256) {
+#[allow(unsafe_code, reason = "the window's start is lane 0's entry, which the caller keeps inside the ROM")]
+unsafe fn window_entries_avx2(padded: &[f32], k: __m256i) -> (__m256, __m256) {
     let table = &padded[PAD_BEFORE..padded.len() - PAD_AFTER];
-    // `entries_avx2`'s clamp, so that the lanes are the entries it would read.
-    let k = _mm256_min_epu32(k, _mm256_set1_epi32(table.len() as i32 - 2));
+    // (No clamp: every lane is at most the last entry but one, this function's
+    // condition, so `entries_avx2`'s reads the same entries.)
+    debug_assert!(
+        {
+            let mut lanes = [0u32; 8];
+            // SAFETY: `lanes` is 8 `u32`, the 32 bytes the store writes.
+            #[allow(unsafe_code, reason = "an unaligned store of a register into an array of its size")]
+            unsafe {
+                _mm256_storeu_si256(lanes.as_mut_ptr().cast(), k)
+            };
+            lanes.iter().all(|&k| (k as usize) < table.len() - 1)
+        },
+        "an entry past the ROM's last but one"
+    );
     // Lane 0's entry, at most `table.len() - 2`; the window starts `WINDOW_BACK`
     // below it, at `k0` in `padded`.
     let k0 = _mm256_cvtsi256_si32(k) as u32 as usize;
@@ -332,7 +357,7 @@ fn window_entries_avx2(padded: &[f32], k: __m256i) -> (__m256, __m256) {
         return entries_avx2(table, k);
     }
     debug_assert!(k0 + WINDOW < padded.len());
-    // SAFETY: `k0` is at most `table.len() - 2` (the `min` above), so the
+    // SAFETY: `k0` is at most `table.len() - 2` (this function's condition), so the
     // `WINDOW` entries read from `padded[k0]` and from `padded[k0 + 1]` end at
     // `k0 + WINDOW`, at most `table.len() - 2 + WINDOW` = `PAD_BEFORE +
     // table.len() + PAD_AFTER - 1`, the last of `padded`.

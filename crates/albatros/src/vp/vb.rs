@@ -1675,6 +1675,12 @@ impl F1Log8 {
             // The bounds [`F1_ZERO16`] is chosen for: `T[0]` and the table's end.
             #[cfg(target_arch = "x86_64")]
             assert!(scale.ln2 <= 118 && scale.softplus_table().len() <= 988, "the 8-bit ln(1 + e^x) table");
+            // [`store16_avx2`]'s constants.
+            #[cfg(target_arch = "x86_64")]
+            assert!(
+                scale.one == LOG8_ONE16.into() && FINE_PER_CODE - scale.ln2 == LOG8_FLOOR16.into(),
+                "the 8-bit scale's Q1 and floor"
+            );
             Self {
                 f1: LogF1::new(scale),
                 encoder: scale.encoder8.as_ref().expect("the 8-bit encoder").tables(),
@@ -2063,20 +2069,30 @@ fn from_code16_avx2(q: __m256i) -> __m256i {
     )
 }
 
+/// The 8-bit scale's `Q1` and `4 - T[0]` (the least value stored as code 1,
+/// [`LogArith::floor`]), as constants of [`store16_avx2`] (checked when the scale's
+/// registers are made, [`F1Log8::get`]): taken from the scale's registers, each was
+/// a load, a move and a broadcast a half cell (terrain: ~0.9 M instructions).
+#[cfg(target_arch = "x86_64")]
+const LOG8_ONE16: i16 = 255;
+#[cfg(target_arch = "x86_64")]
+const LOG8_FLOOR16: i16 = FINE_PER_CODE as i16 - 118;
+
 /// [`LogArith::store`] in 16-bit lanes: fine values `v` to 8-bit codes (rounded to
 /// the nearest code, ties to even; raised to code 1; 0 below the floor), for the
-/// F1 copies in 16-bit lanes ([`f1_cell16_avx2`], [`f1_half_avx2`]).
+/// F1 copies in 16-bit lanes ([`f1_cell16_avx2`], [`f1_half_avx2`]); the 8-bit
+/// scale's `Q1` and floor ([`LOG8_ONE16`], [`LOG8_FLOOR16`]) are `arith`'s.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
 fn store16_avx2(arith: LogArith<'_>, v: __m256i) -> __m256i {
+    debug_assert!(arith.one == LOG8_ONE16.into() && arith.floor == LOG8_FLOOR16.into(), "the 8-bit scale");
     let rounded = _mm256_srai_epi16::<2>(_mm256_add_epi16(
         _mm256_add_epi16(v, _mm256_set1_epi16((FINE_PER_CODE / 2 - 1) as i16)),
         _mm256_and_si256(_mm256_srai_epi16::<2>(v), _mm256_set1_epi16(1)),
     ));
-    let clamped =
-        _mm256_min_epi16(_mm256_max_epi16(rounded, _mm256_set1_epi16(1)), _mm256_set1_epi16(arith.one as i16));
-    let kept = _mm256_cmpgt_epi16(v, _mm256_set1_epi16((arith.floor - 1) as i16));
+    let clamped = _mm256_min_epi16(_mm256_max_epi16(rounded, _mm256_set1_epi16(1)), _mm256_set1_epi16(LOG8_ONE16));
+    let kept = _mm256_cmpgt_epi16(v, _mm256_set1_epi16(LOG8_FLOOR16 - 1));
     _mm256_and_si256(clamped, kept)
 }
 
