@@ -13,7 +13,10 @@
 //! GPs' stretches into one list, copy it). A [`FramePolygon`]
 //! is 64 bytes, one cache line (it was 128: the texture set-up inline, 60 bytes
 //! even when untextured, and a second range equal to the first); a triangle's whole
-//! share of the list is 64 + 3 vertices (36) + 3 edge codes (192) bytes.
+//! share of the list is 64 + 3 vertices (36) + 3 edge codes (96) + its box (8)
+//! bytes. The VP reads the box of every polygon (a matrix VP to find its own, the
+//! look-ahead ahead of it) and the polygon and edges of its own; the vertices are
+//! for the tools (`dump`, the peer's triangles).
 //!
 //! **Invariant**: polygon `i` never lies behind polygon `j > i` where they overlap on
 //! the screen (for non-intersecting geometry); every polygon is convex with at least
@@ -117,6 +120,49 @@ impl FramePolygon {
     pub const NO_TEXTURE: u32 = u32::MAX;
 }
 
+/// A polygon's box of pixels, [`crate::vp::bbox`] of its vertices: columns
+/// `x0..x1` and rows `y0..y1`, widened by one pixel each way and clamped to the
+/// screen. 8 bytes: a screen's side is at most [`crate::db::Screen::MAX_SIDE`].
+///
+/// Kept beside the polygons rather than made from their vertices where it is read:
+/// a VP of a matrix reads the box of every polygon of the frame to find its own, and
+/// the look-ahead every polygon's box ahead; from the vertices that was 36 bytes a
+/// triangle read, 8 from here.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[repr(C)]
+pub struct PixelBox {
+    /// First column.
+    pub x0: u16,
+    /// Column past the last.
+    pub x1: u16,
+    /// First row.
+    pub y0: u16,
+    /// Row past the last.
+    pub y1: u16,
+}
+
+impl PixelBox {
+    /// The box of `vertices` on a `width` x `height` screen ([`crate::vp::bbox`]).
+    #[inline(always)]
+    pub fn of(vertices: &[ScreenVertex], width: u32, height: u32) -> Self {
+        Self::from_bounds(crate::vp::bbox(vertices, width, height))
+    }
+
+    /// The box from `[x0, x1, y0, y1]` (each at most the screen's side, so at most
+    /// [`crate::db::Screen::MAX_SIDE`]; saturated beyond `u16`, which no screen is).
+    #[inline(always)]
+    pub fn from_bounds(b: [u32; 4]) -> Self {
+        let side = |v: u32| v.min(u32::from(u16::MAX)) as u16;
+        Self { x0: side(b[0]), x1: side(b[1]), y0: side(b[2]), y1: side(b[3]) }
+    }
+
+    /// `[x0, x1, y0, y1]`, the form [`crate::vp::bbox`] gives.
+    #[inline]
+    pub fn bounds(self) -> [u32; 4] {
+        [u32::from(self.x0), u32::from(self.x1), u32::from(self.y0), u32::from(self.y1)]
+    }
+}
+
 /// The frame list of one frame (one half of the FB).
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct FrameList {
@@ -139,6 +185,10 @@ pub struct FrameList {
     /// Edges of all polygons in the VP's code, in step with `vertices`.
     #[serde(skip)]
     pub edges: Vec<EdgeCode>,
+    /// Each polygon's pixel box, in step with `polygons`: what the VP reads of a
+    /// polygon that is not its own (its matrix share) or not yet (its look-ahead).
+    #[serde(skip)]
+    pub boxes: Vec<PixelBox>,
     /// Texture set-ups of the textured polygons ([`FramePolygon::texture`]).
     pub textures: Vec<PolyTexture>,
 }
@@ -147,6 +197,24 @@ impl FrameList {
     /// The vertices of polygon `p`.
     pub fn vertices_of(&self, p: &FramePolygon) -> &[ScreenVertex] {
         &self.vertices[p.vertices.start as usize..p.vertices.end as usize]
+    }
+
+    /// Appends polygon `p`, whose vertices and edges are the last of
+    /// [`FrameList::vertices`] and [`FrameList::edges`] from `p.vertices.start`, with
+    /// its box: the one way polygons enter a list, so that
+    /// [`FrameList::boxes`] stays in step.
+    #[inline]
+    pub fn push_polygon(&mut self, p: FramePolygon) {
+        let bbox = PixelBox::of(self.vertices_of(&p), self.width, self.height);
+        self.push_polygon_in(p, bbox);
+    }
+
+    /// [`FrameList::push_polygon`] with the polygon's box worked out by the caller
+    /// (it must be [`PixelBox::of`] its vertices).
+    #[inline]
+    pub fn push_polygon_in(&mut self, p: FramePolygon, bbox: PixelBox) {
+        self.boxes.push(bbox);
+        self.polygons.push(p);
     }
 
     /// The edges of polygon `p`.
@@ -196,6 +264,7 @@ impl FrameList {
         self.vertices.extend_from_slice(&other.vertices);
         self.edges.extend_from_slice(&other.edges);
         self.textures.extend_from_slice(&other.textures);
+        self.boxes.extend_from_slice(&other.boxes);
         self.polygons.extend(other.polygons.iter().map(|p| Self::moved(p, v0, t0)));
     }
 
@@ -205,6 +274,7 @@ impl FrameList {
         self.vertices.clear();
         self.edges.clear();
         self.textures.clear();
+        self.boxes.clear();
     }
 }
 

@@ -67,7 +67,7 @@ use serde::Serialize;
 
 use crate::db::bsp::{Bsp, BspFace, BspVertex, FaceRecord, NodeBounds, Piece, Plane, Slot, Visit};
 use crate::db::{Eye, Scene, Screen};
-use crate::frame::{FrameList, PrimitiveKind};
+use crate::frame::{FrameList, PixelBox, PrimitiveKind};
 #[cfg(doc)]
 use crate::vp::edge::EdgeCode;
 use clip::Window;
@@ -881,6 +881,7 @@ fn join_stretches(stretches: &[FrameList], out: &mut FrameList, parallel: bool) 
         return;
     };
     out.polygons.resize(np, first.polygons[0].clone());
+    out.boxes.resize(np, PixelBox::default());
     out.vertices.resize(nv, first.vertices[0]);
     out.edges.resize(nv, first.edges[0]);
     match stretches.iter().find_map(|l| l.textures.first()) {
@@ -890,20 +891,22 @@ fn join_stretches(stretches: &[FrameList], out: &mut FrameList, parallel: bool) 
     // Each stretch's part of the four lists, and its offsets (edges run in step
     // with vertices).
     let mut parts = Vec::with_capacity(stretches.len());
-    let (mut polygons, mut vertices, mut edges, mut textures) =
-        (&mut out.polygons[..], &mut out.vertices[..], &mut out.edges[..], &mut out.textures[..]);
+    let (mut polygons, mut boxes, mut vertices, mut edges, mut textures) =
+        (&mut out.polygons[..], &mut out.boxes[..], &mut out.vertices[..], &mut out.edges[..], &mut out.textures[..]);
     let (mut v0, mut t0) = (0u32, 0u32);
     for list in stretches {
         let (p, rest_p) = std::mem::take(&mut polygons).split_at_mut(list.polygons.len());
+        let (b, rest_b) = std::mem::take(&mut boxes).split_at_mut(list.boxes.len());
         let (v, rest_v) = std::mem::take(&mut vertices).split_at_mut(list.vertices.len());
         let (e, rest_e) = std::mem::take(&mut edges).split_at_mut(list.edges.len());
         let (t, rest_t) = std::mem::take(&mut textures).split_at_mut(list.textures.len());
-        (polygons, vertices, edges, textures) = (rest_p, rest_v, rest_e, rest_t);
-        parts.push((list, p, v, e, t, v0, t0));
+        (polygons, boxes, vertices, edges, textures) = (rest_p, rest_b, rest_v, rest_e, rest_t);
+        parts.push((list, p, b, v, e, t, v0, t0));
         v0 += list.vertices.len() as u32;
         t0 += list.textures.len() as u32;
     }
-    parts.into_par_iter().for_each(|(list, p, v, e, t, v0, t0)| {
+    parts.into_par_iter().for_each(|(list, p, b, v, e, t, v0, t0)| {
+        b.copy_from_slice(&list.boxes);
         v.copy_from_slice(&list.vertices);
         e.copy_from_slice(&list.edges);
         t.copy_from_slice(&list.textures);

@@ -31,7 +31,7 @@ use glam::{DMat3, DMat4, DVec2, DVec3};
 use super::View;
 use crate::db::bsp::Plane;
 use crate::db::{Material, MaterialTexture, Rgb, Scene};
-use crate::frame::{FracLin, FrameList, FramePolygon, PolyTexture, PrimitiveKind, ScreenVertex};
+use crate::frame::{FracLin, FrameList, FramePolygon, PixelBox, PolyTexture, PrimitiveKind, ScreenVertex};
 #[cfg(target_arch = "x86_64")]
 use crate::vp::edge::TriangleRoot;
 use crate::vp::edge::{EdgeCode, ScreenFx, SNAP_ONE};
@@ -297,17 +297,27 @@ impl Setup {
             let (x, y) = (a.0.to_f32(), a.1.to_f32());
             ScreenVertex { x, y, inv_w: inv_z32.eval(x, y) }
         };
+        // A triangle's box from its vertices in registers ([`FrameList::push_polygon_in`]).
+        let mut triangle_box = None;
         match triangle {
             Some(points) => {
                 #[cfg(target_arch = "x86_64")]
-                if AVX2 {
-                    // SAFETY: with `AVX2` the caller vouches for the processor.
-                    out.vertices.extend_from_slice(&unsafe { triangle_vertices_avx2(points, &inv_z32) });
+                // SAFETY: with `AVX2` the caller vouches for the processor.
+                #[allow(unsafe_code, reason = "an AVX2 function, its feature vouched for by the caller")]
+                let bbox = if AVX2 {
+                    unsafe { triangle_vertices_avx2(points, &inv_z32, out.width, out.height, &mut out.vertices) }
                 } else {
-                    out.vertices.extend_from_slice(&[vertex(&points[0]), vertex(&points[1]), vertex(&points[2])]);
-                }
+                    let vertices = [vertex(&points[0]), vertex(&points[1]), vertex(&points[2])];
+                    out.vertices.extend_from_slice(&vertices);
+                    PixelBox::of(&vertices, out.width, out.height)
+                };
                 #[cfg(not(target_arch = "x86_64"))]
-                out.vertices.extend_from_slice(&[vertex(&points[0]), vertex(&points[1]), vertex(&points[2])]);
+                let bbox = {
+                    let vertices = [vertex(&points[0]), vertex(&points[1]), vertex(&points[2])];
+                    out.vertices.extend_from_slice(&vertices);
+                    PixelBox::of(&vertices, out.width, out.height)
+                };
+                triangle_box = Some(bbox);
                 #[cfg(target_arch = "x86_64")]
                 #[allow(unsafe_code, reason = "an AVX2 function, its feature vouched for by the caller")]
                 let done = AVX2
@@ -329,7 +339,7 @@ impl Setup {
                 EdgeCode::push_outline(&self.snapped, inside_positive, self.root_side, &mut out.edges);
             }
         }
-        out.polygons.push(FramePolygon {
+        let polygon = FramePolygon {
             vertices: vstart..out.vertices.len() as u32,
             kind: source.kind,
             material: source.material,
@@ -339,7 +349,11 @@ impl Setup {
             intensity,
             texture,
             transparency: material.map_or(0, |m| m.transparency.code()),
-        });
+        };
+        match triangle_box {
+            Some(bbox) => out.push_polygon_in(polygon, bbox),
+            None => out.push_polygon(polygon),
+        }
         true
     }
 
@@ -629,11 +643,13 @@ unsafe fn snap_triangle_lanes_avx2(
     (area2 != 0).then_some((area2 > 0, points))
 }
 
-/// A triangle's [`ScreenVertex`]es (what [`Setup::add_face`] makes of each
+/// Appends a triangle's [`ScreenVertex`]es to `out` (what [`Setup::add_face`] makes of each
 /// snapped point: `x`, `y` by [`ScreenFx::to_f32`], `inv_w` by [`FracLin::eval`])
 /// with the three points in the lanes of SSE registers: the same `f32` operations
 /// in the same order (`i32` to `f32`, a division by 256, `(a x + b y) + c`, no
-/// FMA), where the scalar code converted and evaluated each point on its own.
+/// FMA), where the scalar code converted and evaluated each point on its own;
+/// and gives its [`PixelBox`] on a `width` x `height` screen from the same lanes
+/// ([`crate::vp::bbox`]'s operations: `bbox_sse41`'s, bit for bit).
 ///
 /// # Safety
 /// The processor must have AVX2 (inlined always, so compiled with the caller's
@@ -641,12 +657,39 @@ unsafe fn snap_triangle_lanes_avx2(
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code, reason = "AVX2 instructions, inlined into a caller compiled for AVX2")]
 #[inline(always)]
-unsafe fn triangle_vertices_avx2(points: [(ScreenFx, ScreenFx); 3], f: &FracLin) -> [ScreenVertex; 3] {
+unsafe fn triangle_vertices_avx2(
+    points: [(ScreenFx, ScreenFx); 3],
+    f: &FracLin,
+    width: u32,
+    height: u32,
+    out: &mut Vec<ScreenVertex>,
+) -> PixelBox {
     use std::arch::x86_64::*;
     let [p0, p1, p2] = points;
     let one = _mm_set1_ps(SNAP_ONE as f32);
-    let xs = _mm_div_ps(_mm_cvtepi32_ps(_mm_setr_epi32(p0.0 .0, p1.0 .0, p2.0 .0, 0)), one);
-    let ys = _mm_div_ps(_mm_cvtepi32_ps(_mm_setr_epi32(p0.1 .0, p1.1 .0, p2.1 .0, 0)), one);
+    // (The first point again in the fourth lane, for the box.)
+    let xs = _mm_div_ps(_mm_cvtepi32_ps(_mm_setr_epi32(p0.0 .0, p1.0 .0, p2.0 .0, p0.0 .0)), one);
+    let ys = _mm_div_ps(_mm_cvtepi32_ps(_mm_setr_epi32(p0.1 .0, p1.1 .0, p2.1 .0, p0.1 .0)), one);
+    // The box as `crate::vp::bbox` makes it of the three vertices: the least and
+    // greatest x and y (finite, whole multiples of 1/256), `floor - 1` and `ceil + 1`,
+    // at least 0, at most the screen's side (exact as `f32`: at most 8192).
+    let (x_lo, x_hi) = (_mm_min_ps(xs, _mm_movehl_ps(xs, xs)), _mm_max_ps(xs, _mm_movehl_ps(xs, xs)));
+    let (y_lo, y_hi) = (_mm_min_ps(ys, _mm_movehl_ps(ys, ys)), _mm_max_ps(ys, _mm_movehl_ps(ys, ys)));
+    // Lanes x0 | x1 of each: x0 = min(a, c), x1 = min(b, a); then the lanes' least.
+    let lo = _mm_unpacklo_ps(x_lo, y_lo); // x(a,c) y(a,c) x(b,a) y(b,a)
+    let hi = _mm_unpacklo_ps(x_hi, y_hi);
+    let lo = _mm_min_ps(lo, _mm_movehl_ps(lo, lo)); // x0 y0 . .
+    let hi = _mm_max_ps(hi, _mm_movehl_ps(hi, hi)); // x1 y1 . .
+    let v = _mm_movelh_ps(lo, hi); // x0 y0 x1 y1
+    let unit = _mm_set1_ps(1.0);
+    let widened = _mm_blend_ps::<0b1100>(_mm_sub_ps(_mm_floor_ps(v), unit), _mm_add_ps(_mm_ceil_ps(v), unit));
+    let (w, h) = (width as f32, height as f32);
+    let clamped = _mm_min_ps(_mm_max_ps(widened, _mm_setzero_ps()), _mm_setr_ps(w, h, w, h));
+    // x0 y0 x1 y1 to x0 x1 y0 y1, in 16 bits.
+    let bounds = _mm_shuffle_epi32::<0b11_01_10_00>(_mm_cvttps_epi32(clamped));
+    let packed = _mm_cvtsi128_si64(_mm_packus_epi32(bounds, bounds)) as u64;
+    let bbox =
+        PixelBox { x0: packed as u16, x1: (packed >> 16) as u16, y0: (packed >> 32) as u16, y1: (packed >> 48) as u16 };
     let ws =
         _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_set1_ps(f.a), xs), _mm_mul_ps(_mm_set1_ps(f.b), ys)), _mm_set1_ps(f.c));
     let mut lanes = [[0f32; 4]; 3];
@@ -655,11 +698,12 @@ unsafe fn triangle_vertices_avx2(points: [(ScreenFx, ScreenFx); 3], f: &FracLin)
         unsafe { _mm_storeu_ps(slot.as_mut_ptr(), v) };
     }
     let [x, y, w] = lanes;
-    [
+    out.extend_from_slice(&[
         ScreenVertex { x: x[0], y: y[0], inv_w: w[0] },
         ScreenVertex { x: x[1], y: y[1], inv_w: w[1] },
         ScreenVertex { x: x[2], y: y[2], inv_w: w[2] },
-    ]
+    ]);
+    bbox
 }
 
 /// The first step of [`snap_outline`]: the outline snapped into `s` without
@@ -724,7 +768,7 @@ pub fn push_flat_polygon(out: &mut FrameList, outline: &[DVec2], color: Rgb, inv
     let vstart = out.vertices.len() as u32;
     out.vertices.extend(snapped.iter().map(|a| ScreenVertex { x: a.0.to_f32(), y: a.1.to_f32(), inv_w: inv_z }));
     EdgeCode::push_outline(&snapped, inside_positive, root_side, &mut out.edges);
-    out.polygons.push(FramePolygon {
+    out.push_polygon(FramePolygon {
         vertices: vstart..out.vertices.len() as u32,
         kind: PrimitiveKind::Face,
         material: 0,
@@ -970,7 +1014,7 @@ pub(crate) mod tests {
 
     /// [`triangle_vertices_avx2`] is [`Setup::add_face`]'s scalar vertices, bit
     /// for bit, on random points and coefficients (tiny to huge, signed zeros,
-    /// the extreme coordinates).
+    /// the extreme coordinates), and its box their [`crate::vp::bbox_plain`].
     #[test]
     fn triangle_vertices_avx2_is_the_plain_definition() {
         #[cfg(target_arch = "x86_64")]
@@ -996,11 +1040,19 @@ pub(crate) mod tests {
                     let (x, y) = (a.0.to_f32(), a.1.to_f32());
                     ScreenVertex { x, y, inv_w: f.eval(x, y) }
                 });
+                let (w, h) = (1 + (rng.next() % 8192) as u32, 1 + (rng.next() % 8192) as u32);
+                let mut got = Vec::new();
                 // SAFETY: AVX2 was detected above.
                 #[allow(unsafe_code, reason = "the AVX2 path under test, after detection")]
-                let got = unsafe { triangle_vertices_avx2(points, &f) };
+                let got_box = unsafe { triangle_vertices_avx2(points, &f, w, h, &mut got) };
+                let got: [ScreenVertex; 3] = got.try_into().expect("three vertices");
                 let bits = |v: [ScreenVertex; 3]| v.map(|v| [v.x.to_bits(), v.y.to_bits(), v.inv_w.to_bits()]);
                 assert_eq!(bits(got), bits(want), "{points:?} {f:?}");
+                assert_eq!(
+                    got_box,
+                    PixelBox::from_bounds(crate::vp::bbox_plain(&want, w, h)),
+                    "{points:?} on {w} x {h}"
+                );
             }
         }
     }

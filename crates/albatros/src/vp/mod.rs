@@ -307,8 +307,14 @@ impl VideoProcessor {
         // none yet: a box no other box is near.
         let mut asked = NOWHERE;
         for (s, frame) in stretches.iter().enumerate() {
-            let box_of =
-                |i: usize| frame.polygons.get(i).map(|p| bbox(frame.vertices_of(p), frame.width, frame.height));
+            // (A list whose polygons were pushed past `FrameList::push_polygon` would
+            // have its polygons passed over for want of boxes.)
+            assert_eq!(
+                frame.boxes.len(),
+                frame.polygons.len(),
+                "the frame list's boxes are not in step with its polygons"
+            );
+            let box_of = |i: usize| frame.boxes.get(i).map(|b| b.bounds());
             // The boxes of the polygons from the current one to the one ahead,
             // each found once, at `i % BOXES`.
             let mut boxes = [[0u32; 4]; BOXES];

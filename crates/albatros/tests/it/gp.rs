@@ -3,7 +3,7 @@
 
 use albatros::db::bsp::{polygon_area, Bsp, BspFace, BspVertex, Piece, Plane, Visit};
 use albatros::db::{builtin, Face, Instance, Material, Model, Scene, Screen, Vertex};
-use albatros::frame::{FrameList, FramePolygon};
+use albatros::frame::{FrameList, FramePolygon, PixelBox};
 use albatros::gp::{self, Clipper, Database, GpConfig};
 use glam::{DVec2, DVec3, Mat4, Vec3};
 use proptest::prelude::*;
@@ -296,6 +296,13 @@ fn builtin_scenes_make_frame_lists() {
         assert!(!frame.polygons.is_empty());
         assert_eq!(c.polygons_out as usize, frame.polygons.len());
         assert_eq!(c.faces_in, c.backfacing + c.outside + c.face_class.iter().sum::<u64>());
+        // Each polygon's box, made by the GP's set-up (from a triangle's lanes),
+        // is the box of its vertices: the VP reads it in their stead.
+        assert_eq!(frame.boxes.len(), frame.polygons.len(), "{name}");
+        for (i, p) in frame.polygons.iter().enumerate() {
+            let want = PixelBox::of(frame.vertices_of(p), frame.width, frame.height);
+            assert_eq!(frame.boxes[i], want, "{name}: polygon {i}");
+        }
     }
 }
 
