@@ -669,3 +669,32 @@ fn strips_that_do_not_suit_the_matrix_are_refused() {
     let mut interleaved = Matrix::new(200, 120, VpConfig::default(), 2, 1, 16, 1).unwrap();
     assert!(interleaved.set_strips(&[(0, 96), (96, 200)]).is_err());
 }
+
+/// The fragments waiting between the SPPs and the colour computers (the VP's FIFO)
+/// all reach the VB by the frame's end, also when no background fragment comes after
+/// them: a screen covered wholly by one polygon, drawn by a VP that drew another
+/// colour the frame before (a fragment left in the queue would keep that colour).
+#[test]
+fn every_queued_fragment_reaches_the_video_buffer() {
+    let (w, h) = (100, 60);
+    let screen = [
+        DVec2::new(0.0, 0.0),
+        DVec2::new(f64::from(w), 0.0),
+        DVec2::new(f64::from(w), f64::from(h)),
+        DVec2::new(0.0, f64::from(h)),
+    ];
+    let frame_of = |color: Vec3| {
+        let mut frame = empty_frame(w, h);
+        frame.background = Vec3::new(0.0, 0.0, 1.0);
+        assert!(push_flat_polygon(&mut frame, &screen, color, 0.5));
+        frame
+    };
+    let mut vp = VideoProcessor::new(w, h, VpConfig::default());
+    let first = vp.render(&frame_of(Vec3::new(1.0, 0.0, 0.0)));
+    let second = vp.render(&frame_of(Vec3::new(0.0, 1.0, 0.0)));
+    for (image, want) in [(&first, [255, 0, 0]), (&second, [0, 255, 0])] {
+        for (i, px) in image.pixels.chunks(3).enumerate() {
+            assert_eq!(px, want, "pixel ({}, {})", i as u32 % w, i as u32 / w);
+        }
+    }
+}
