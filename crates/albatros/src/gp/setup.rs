@@ -298,26 +298,21 @@ impl Setup {
             ScreenVertex { x, y, inv_w: inv_z32.eval(x, y) }
         };
         // A triangle's box from its vertices in registers ([`FrameList::push_polygon_in`]).
-        let mut triangle_box = None;
-        match triangle {
+        let triangle_box = match triangle {
             Some(points) => {
-                #[cfg(target_arch = "x86_64")]
-                // SAFETY: with `AVX2` the caller vouches for the processor.
-                #[allow(unsafe_code, reason = "an AVX2 function, its feature vouched for by the caller")]
-                let bbox = if AVX2 {
-                    unsafe { triangle_vertices_avx2(points, &inv_z32, out.width, out.height, &mut out.vertices) }
-                } else {
+                let bbox = 'bbox: {
+                    #[cfg(target_arch = "x86_64")]
+                    if AVX2 {
+                        // SAFETY: with `AVX2` the caller vouches for the processor.
+                        #[allow(unsafe_code, reason = "an AVX2 function, its feature vouched for by the caller")]
+                        break 'bbox unsafe {
+                            triangle_vertices_avx2(points, &inv_z32, out.width, out.height, &mut out.vertices)
+                        };
+                    }
                     let vertices = [vertex(&points[0]), vertex(&points[1]), vertex(&points[2])];
                     out.vertices.extend_from_slice(&vertices);
                     PixelBox::of(&vertices, out.width, out.height)
                 };
-                #[cfg(not(target_arch = "x86_64"))]
-                let bbox = {
-                    let vertices = [vertex(&points[0]), vertex(&points[1]), vertex(&points[2])];
-                    out.vertices.extend_from_slice(&vertices);
-                    PixelBox::of(&vertices, out.width, out.height)
-                };
-                triangle_box = Some(bbox);
                 #[cfg(target_arch = "x86_64")]
                 #[allow(unsafe_code, reason = "an AVX2 function, its feature vouched for by the caller")]
                 let done = AVX2
@@ -333,12 +328,14 @@ impl Setup {
                 if !done {
                     EdgeCode::push_triangle(points, inside_positive, self.root_side, &mut out.edges);
                 }
+                Some(bbox)
             }
             None => {
                 out.vertices.extend(self.snapped.iter().map(vertex));
                 EdgeCode::push_outline(&self.snapped, inside_positive, self.root_side, &mut out.edges);
+                None
             }
-        }
+        };
         let polygon = FramePolygon {
             vertices: vstart..out.vertices.len() as u32,
             kind: source.kind,
@@ -649,7 +646,8 @@ unsafe fn snap_triangle_lanes_avx2(
 /// in the same order (`i32` to `f32`, a division by 256, `(a x + b y) + c`, no
 /// FMA), where the scalar code converted and evaluated each point on its own;
 /// and gives its [`PixelBox`] on a `width` x `height` screen from the same lanes
-/// ([`crate::vp::bbox`]'s operations: `bbox_sse41`'s, bit for bit).
+/// (the least and greatest `x, y`, then `bbox_sse41`'s own steps,
+/// `crate::vp::box_bounds_sse41`).
 ///
 /// # Safety
 /// The processor must have AVX2 (inlined always, so compiled with the caller's
@@ -671,8 +669,7 @@ unsafe fn triangle_vertices_avx2(
     let xs = _mm_div_ps(_mm_cvtepi32_ps(_mm_setr_epi32(p0.0 .0, p1.0 .0, p2.0 .0, p0.0 .0)), one);
     let ys = _mm_div_ps(_mm_cvtepi32_ps(_mm_setr_epi32(p0.1 .0, p1.1 .0, p2.1 .0, p0.1 .0)), one);
     // The box as `crate::vp::bbox` makes it of the three vertices: the least and
-    // greatest x and y (finite, whole multiples of 1/256), `floor - 1` and `ceil + 1`,
-    // at least 0, at most the screen's side (exact as `f32`: at most 8192).
+    // greatest x and y (finite, whole multiples of 1/256), then its bounds.
     let (x_lo, x_hi) = (_mm_min_ps(xs, _mm_movehl_ps(xs, xs)), _mm_max_ps(xs, _mm_movehl_ps(xs, xs)));
     let (y_lo, y_hi) = (_mm_min_ps(ys, _mm_movehl_ps(ys, ys)), _mm_max_ps(ys, _mm_movehl_ps(ys, ys)));
     // Lanes x0 | x1 of each: x0 = min(a, c), x1 = min(b, a); then the lanes' least.
@@ -681,12 +678,10 @@ unsafe fn triangle_vertices_avx2(
     let lo = _mm_min_ps(lo, _mm_movehl_ps(lo, lo)); // x0 y0 . .
     let hi = _mm_max_ps(hi, _mm_movehl_ps(hi, hi)); // x1 y1 . .
     let v = _mm_movelh_ps(lo, hi); // x0 y0 x1 y1
-    let unit = _mm_set1_ps(1.0);
-    let widened = _mm_blend_ps::<0b1100>(_mm_sub_ps(_mm_floor_ps(v), unit), _mm_add_ps(_mm_ceil_ps(v), unit));
-    let (w, h) = (width as f32, height as f32);
-    let clamped = _mm_min_ps(_mm_max_ps(widened, _mm_setzero_ps()), _mm_setr_ps(w, h, w, h));
-    // x0 y0 x1 y1 to x0 x1 y0 y1, in 16 bits.
-    let bounds = _mm_shuffle_epi32::<0b11_01_10_00>(_mm_cvttps_epi32(clamped));
+                                   // SAFETY: the processor has AVX2 (this function's condition), so SSE4.1.
+    #[allow(unsafe_code, reason = "an SSE4.1 function on a processor with AVX2")]
+    let bounds = unsafe { crate::vp::box_bounds_sse41(v, width, height) };
+    // To 16 bits.
     let packed = _mm_cvtsi128_si64(_mm_packus_epi32(bounds, bounds)) as u64;
     let bbox =
         PixelBox { x0: packed as u16, x1: (packed >> 16) as u16, y0: (packed >> 32) as u16, y1: (packed >> 48) as u16 };

@@ -623,12 +623,11 @@ struct Colouring<'a, 'v, const STATS: bool, const STRETCHES: bool> {
 /// session 19). The order of the cells is kept, so the VB's sums are the same.
 const FIFO_CELLS: usize = 64;
 
-/// A visible fragment waiting in [`Colouring::fifo`], with what colours it.
+/// A visible fragment waiting in [`Colouring::fifo`], with what colours it
+/// ([`Kind::Shaded`] or [`Kind::Flat`]).
 struct Queued<'a> {
     vis: spp::Visible,
-    /// `Some`: coloured by the CC pixel by pixel; `None`: of one colour, `flat`.
-    poly: Option<&'a FramePolygon>,
-    flat: Vec3,
+    kind: Kind<'a>,
 }
 
 impl<const STATS: bool, const STRETCHES: bool> Colouring<'_, '_, STATS, STRETCHES> {
@@ -636,8 +635,8 @@ impl<const STATS: bool, const STRETCHES: bool> Colouring<'_, '_, STATS, STRETCHE
     #[inline(never)]
     fn flush(&mut self) {
         for q in &self.fifo {
-            match q.poly {
-                Some(poly) => self.cc.shade_accumulate::<STATS>(
+            match q.kind {
+                Kind::Shaded(poly) => self.cc.shade_accumulate::<STATS>(
                     poly,
                     &q.vis,
                     &mut self.colors,
@@ -645,7 +644,8 @@ impl<const STATS: bool, const STRETCHES: bool> Colouring<'_, '_, STATS, STRETCHE
                     self.vb,
                     self.fused,
                 ),
-                None => self.vb.accumulate_flat(&q.vis, q.flat),
+                Kind::Flat(color) => self.vb.accumulate_flat(&q.vis, color),
+                Kind::None | Kind::Unknown(_) => unreachable!("a cell queued without its colouring"),
             }
         }
         self.fifo.clear();
@@ -677,23 +677,18 @@ impl<const STATS: bool, const STRETCHES: bool> Sink for Colouring<'_, '_, STATS,
 
     #[inline(always)]
     fn cell(&mut self, vis: &spp::Visible) {
-        let (poly, flat) = match self.kind {
-            Kind::Shaded(poly) => (Some(poly), Vec3::ZERO),
-            Kind::Flat(color) => (None, color),
-            Kind::Unknown(poly) => match self.cc.flat_color(poly) {
-                Some(color) => {
-                    self.kind = Kind::Flat(color);
-                    (None, color)
+        match self.kind {
+            Kind::Shaded(_) | Kind::Flat(_) => {}
+            Kind::Unknown(poly) => {
+                self.kind = match self.cc.flat_color(poly) {
+                    Some(color) => Kind::Flat(color),
+                    None => Kind::Shaded(poly),
                 }
-                None => {
-                    self.kind = Kind::Shaded(poly);
-                    (Some(poly), Vec3::ZERO)
-                }
-            },
+            }
             Kind::None => unreachable!("a cell before its polygon"),
-        };
+        }
         // The VB's writes are counted once per frame (`run`).
-        self.fifo.push(Queued { vis: *vis, poly, flat });
+        self.fifo.push(Queued { vis: *vis, kind: self.kind });
         if self.fifo.len() == FIFO_CELLS {
             self.flush();
         }
@@ -799,13 +794,7 @@ fn bbox_sse41(verts: &[crate::frame::ScreenVertex], width: u32, height: u32) -> 
         hi = _mm_max_ps(p, hi);
     }
     // Lanes x0, y0, x1, y1.
-    let v = _mm_movelh_ps(lo, hi);
-    let one = _mm_set1_ps(1.0);
-    let widened = _mm_blend_ps::<0b1100>(_mm_sub_ps(_mm_floor_ps(v), one), _mm_add_ps(_mm_ceil_ps(v), one));
-    let (w, h) = (width as f32, height as f32);
-    let clamped = _mm_min_ps(_mm_max_ps(widened, _mm_setzero_ps()), _mm_setr_ps(w, h, w, h));
-    // To x0, x1, y0, y1.
-    let bounds = _mm_shuffle_epi32::<0b11_01_10_00>(_mm_cvttps_epi32(clamped));
+    let bounds = box_bounds_sse41(_mm_movelh_ps(lo, hi), width, height);
     let mut out = [0u32; 4];
     // SAFETY: `out` is 16 bytes, which the store writes.
     #[allow(unsafe_code, reason = "an unaligned store of a register into an array of its size")]
@@ -813,6 +802,24 @@ fn bbox_sse41(verts: &[crate::frame::ScreenVertex], width: u32, height: u32) -> 
         _mm_storeu_si128(out.as_mut_ptr().cast(), bounds)
     };
     out
+}
+
+/// [`bbox_sse41`]'s bounds from the least and greatest `x, y` of a polygon's
+/// vertices (lanes `x0, y0, x1, y1`): floor or ceil, minus or plus one, `max` with
+/// 0, `min` with the screen's side, truncated to whole numbers, in lanes `x0, x1,
+/// y0, y1`. Also the GP's set-up's, on a triangle's lanes
+/// (`gp::setup::triangle_vertices_avx2`), so that its boxes are the VP's.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "sse4.1")]
+#[inline]
+pub(crate) fn box_bounds_sse41(v: std::arch::x86_64::__m128, width: u32, height: u32) -> std::arch::x86_64::__m128i {
+    use std::arch::x86_64::*;
+    let one = _mm_set1_ps(1.0);
+    let widened = _mm_blend_ps::<0b1100>(_mm_sub_ps(_mm_floor_ps(v), one), _mm_add_ps(_mm_ceil_ps(v), one));
+    let (w, h) = (width as f32, height as f32);
+    let clamped = _mm_min_ps(_mm_max_ps(widened, _mm_setzero_ps()), _mm_setr_ps(w, h, w, h));
+    // To x0, x1, y0, y1.
+    _mm_shuffle_epi32::<0b11_01_10_00>(_mm_cvttps_epi32(clamped))
 }
 
 #[cfg(test)]
