@@ -676,6 +676,7 @@ impl Bsp {
     /// visited whole as one [`Visit::Culled`] in place of its subtree's visits, and
     /// that the guests' places are visited only with `guests` (a frame with none
     /// attached need not visit two or three places per node).
+    #[inline(always)]
     pub fn traverse_subtree_culled(
         &self,
         node: u32,
@@ -688,7 +689,11 @@ impl Bsp {
             node,
             eye,
             guests,
+            #[inline(always)]
             |n| cull(n).then_some(Piece::Visit(Visit::Culled(n))),
+            // Inlined (and so compiled with the target features of a caller that
+            // has them, which a closure left out of line would not be).
+            #[inline(always)]
             |p| {
                 if let Piece::Visit(v) = p {
                     visit(v)
@@ -719,6 +724,7 @@ impl Bsp {
     /// The traversal from `root`; a node for which `cut` gives a piece is handed out
     /// whole as that piece ([`Piece::Subtree`] or [`Visit::Culled`]).
     /// Guests' places are visited only with `guests`.
+    #[inline(always)]
     fn walk(&self, root: u32, eye: DVec3, guests: bool, cut: impl Fn(u32) -> Option<Piece>, visit: impl FnMut(Piece)) {
         if guests {
             self.walk_with::<true>(root, eye, cut, visit);
@@ -729,6 +735,7 @@ impl Bsp {
 
     /// [`Bsp::walk`] with `guests` a constant: its tests, two or three a node, are
     /// then compiled out (on `many`, a million nodes a frame).
+    #[inline(always)]
     fn walk_with<const GUESTS: bool>(
         &self,
         root: u32,
