@@ -1042,7 +1042,7 @@ impl FrameBuilder<'_> {
     ///
     /// With AVX2 by a copy of the walk compiled for it
     /// ([`FrameBuilder::traverse_static_avx2`]), the face set-up inlined into it: no
-    /// call a face (the face function's prologue and epilogue, ~35 instructions a
+    /// call a face (the face function's prologue and epilogue: ~17 instructions a
     /// face on `many`).
     fn traverse_static(&mut self, n: u32, guests: bool) {
         #[cfg(target_arch = "x86_64")]
@@ -1115,17 +1115,7 @@ impl FrameBuilder<'_> {
     #[inline(always)]
     fn visit_with<const AVX2: bool>(&mut self, step: Visit) {
         match step {
-            Visit::Face(i) if AVX2 => {
-                let f = self.f;
-                let bsp = &f.db.bsp;
-                self.face_body::<true>(
-                    &bsp.records[i as usize],
-                    bsp,
-                    &f.view.world_to_eye,
-                    &f.view.position,
-                    &f.sun_world,
-                );
-            }
+            Visit::Face(i) if AVX2 => self.static_face_body::<true>(i),
             Visit::Face(i) => self.static_face(i),
             Visit::Guests(n, slot) => {
                 debug_assert!(self.has_guests(n, slot));
@@ -1163,9 +1153,16 @@ impl FrameBuilder<'_> {
     #[target_feature(enable = "avx2,bmi1,bmi2,lzcnt,popcnt")]
     #[inline(never)]
     fn static_face_avx2(&mut self, i: u32) {
+        self.static_face_body::<true>(i);
+    }
+
+    /// [`FrameBuilder::face_body`] of face `i` of the static tree, seen from the
+    /// frame's eye; with `AVX2` only where [`FrameBuilder::face_body`] allows it.
+    #[inline(always)]
+    fn static_face_body<const AVX2: bool>(&mut self, i: u32) {
         let f = self.f;
         let bsp = &f.db.bsp;
-        self.face_body::<true>(&bsp.records[i as usize], bsp, &f.view.world_to_eye, &f.view.position, &f.sun_world);
+        self.face_body::<AVX2>(&bsp.records[i as usize], bsp, &f.view.world_to_eye, &f.view.position, &f.sun_world);
     }
 
     /// The faces of a subtree wholly outside the view volume ([`Shared::culls`]):
