@@ -537,6 +537,9 @@ pub struct CellProcessors {
     inside: Vec<Vec<usize>>,
     /// Bit `k`: `inside[k]` is not empty.
     queued: u32,
+    /// Whether [`Self::descend_filling`] finds a small polygon's last-level cells at
+    /// once ([`Self::last_cells`]); off, it splits level by level (for tests).
+    at_once: bool,
 }
 
 /// A level-L cell handed to the SPPs, with the edges that cross it; or, from
@@ -635,6 +638,7 @@ impl CellProcessors {
             stride: 0,
             inside: vec![Vec::new(); root_level as usize + 1],
             queued: 0,
+            at_once: true,
         }
     }
 
@@ -851,6 +855,22 @@ impl CellProcessors {
             self.lists.resize(4 * self.stride * (self.root_level as usize + 1), ActiveEdge::EMPTY);
             self.start_edges.resize(self.stride, StartEdge::EMPTY);
         }
+        if FILL && self.at_once && n <= AT_ONCE_EDGES && self.root_level >= 1 {
+            // A box within 4 x 4 cells of level L - 1 (8 pixels): its last-level cells
+            // at once ([`Self::last_cells`]), from the bounding cell when that is of
+            // level L - 1, else from the start at the polygon's size.
+            let [x0, x1, y0, y1] = poly.bbox;
+            let (cx0, cy0) = (x0 >> 3, y0 >> 3);
+            let (columns, rows) = (((x1 - 1) >> 3) - cx0, ((y1 - 1) >> 3) - cy0);
+            if start.level + 1 == self.root_level {
+                self.last_cells(start.x, start.y, 0, 0, None, poly, spp);
+                return;
+            }
+            if start.level + 1 < self.root_level && columns < WINDOW_SPAN && rows < WINDOW_SPAN {
+                self.last_cells(cx0, cy0, columns, rows, Some(start.level + 1), poly, spp);
+                return;
+            }
+        }
         if FILL && self.start_at_size(start, poly, counters, spp) {
             return;
         }
@@ -1041,6 +1061,122 @@ impl CellProcessors {
             }
         }
         true
+    }
+
+    /// The filling descent of a small polygon from the cells of level L - 1 (8
+    /// pixels) `cx0 ..= cx0 + columns` by `cy0 ..= cy0 + rows` (fewer than
+    /// [`WINDOW_SPAN`] each way), their last-level cells found at once: each edge
+    /// coded for the 8 x 8 last-level cells of the 4 x 4 cells of level L - 1 from
+    /// `(cx0, cy0)` in one step ([`LastCells`]), not by a split of each cell of
+    /// level L - 1 edge by edge (the start's list of each cell, `child_codes`, the
+    /// children's lists written for every edge). The same fragments in the same
+    /// order, and the same marks and queued cells, as the descent: `from` `None` for
+    /// the descent from the bounding cell `(cx0, cy0)` (whose marks the caller has
+    /// read: it is split, [`Self::split_step`]), `Some(from)` for the start at the
+    /// polygon's size ([`Self::start_at_size`]: the cells in Z order by
+    /// [`StartBlocks`], each cell's mark read from level `from` on, a cell wholly
+    /// inside marked and filled, the others split). A split's decisions are each
+    /// child's alone: an edge codes a child IN when its line lies at or before the
+    /// child's near border on the polygon's side, OUT when at or beyond its far one
+    /// ([`edge_code`]), by the V of the child's own stretch, which is the edge's V at
+    /// the child's borders (exact, [`super::edge`]); so a cell of level L - 1 is OUT
+    /// for an edge (dropped by the start) when its four children are, IN when they
+    /// are, and the split's child lists hold, in order, the edges that cross the
+    /// child. Tested against the descent level by level
+    /// (`last_cells_are_the_descent`).
+    #[expect(clippy::too_many_arguments, reason = "the start's cells, passed in registers")]
+    #[inline(always)]
+    fn last_cells(
+        &mut self,
+        cx0: u32,
+        cy0: u32,
+        columns: u32,
+        rows: u32,
+        from: Option<u32>,
+        poly: &GqPolygon,
+        spp: &mut impl FragmentSink,
+    ) {
+        let last = self.root_level;
+        let level = last - 1;
+        let n = poly.edges.len();
+        let codes = LastCells::new(poly.edges, cx0 * 8, cy0 * 8, columns, rows);
+        let list = 4 * self.stride * last as usize;
+        // With the level in use, its own mark decides ([`Self::covered`]): an aligned
+        // 8 x 8 block's marks are one word, read once for its cells.
+        let one_read = self.masks.has(level);
+        let blocks = StartBlocks::new(cx0, cy0, columns, rows);
+        for i in 0..blocks.count {
+            let (bz, bx, by, cells) = blocks.block(i);
+            let mut open = cells;
+            if from.is_some() && one_read {
+                open &= !self.memories[level as usize].word(bz);
+            }
+            while open != 0 {
+                let p = open.trailing_zeros() as usize;
+                open &= open - 1;
+                let z = bz << 6 | p;
+                let (dx, dy) = (bx * 8 + Z_COLUMN[p] - cx0, by * 8 + Z_ROW[p] - cy0);
+                let cell = Cell { level, x: cx0 + dx, y: cy0 + dy };
+                // The cell's children in the window's words: bits `b`, `b + 1`, `b + 8`
+                // and `b + 9`.
+                let b = 2 * dx + 16 * dy;
+                let (outside, inside) = (children_bits(codes.outside, b), children_bits(codes.inside, b));
+                if let Some(from) = from {
+                    if !one_read && self.covered(z, level, from) {
+                        continue;
+                    }
+                    if inside == 0xF {
+                        // Wholly inside: as the start at the polygon's size does.
+                        if poly.opaque && self.masks.has(level) {
+                            self.memories[level as usize].set_z(z);
+                        }
+                        if self.hierarchical && poly.opaque {
+                            self.inside[level as usize].push(z);
+                            self.queued |= 1 << level;
+                        }
+                        self.fill(cell, z, poly.opaque, spp);
+                        continue;
+                    }
+                }
+                // The split of `cell` ([`Self::split_step`], its children last-level).
+                let m =
+                    u32::from(self.memories[last as usize].children(z) | !children_in_box(cell, 2, poly.bbox) & 0xF);
+                if m == 0xF {
+                    continue;
+                }
+                let (cri, ci) = (!m & !outside & 0xF, !m & inside & 0xF);
+                if poly.opaque && self.masks.has(last) {
+                    self.memories[last as usize].set_children(z, ci as u8);
+                }
+                let mut todo = cri;
+                while todo != 0 {
+                    let c = todo.trailing_zeros();
+                    todo &= todo - 1;
+                    if ci >> c & 1 == 1 {
+                        if self.hierarchical && poly.opaque {
+                            self.inside[last as usize].push(4 * z + c as usize);
+                            self.queued |= 1 << last;
+                        }
+                        spp.fragment(Fragment {
+                            px: cell.x * 8,
+                            py: cell.y * 8,
+                            active: &[],
+                            cells: 1 << c,
+                            bbox: poly.bbox,
+                        });
+                        continue;
+                    }
+                    let len = codes.list(b + (c & 1) + 8 * (c >> 1), &mut self.lists[list..list + n]);
+                    spp.fragment(Fragment {
+                        px: (cell.x * 2 + (c & 1)) * 4,
+                        py: (cell.y * 2 + (c >> 1)) * 4,
+                        active: &self.lists[list..list + len],
+                        cells: ONE_CELL,
+                        bbox: poly.bbox,
+                    });
+                }
+            }
+        }
     }
 
     /// One GQ step: splits `cell` (Z-order index `z`, its `len` active edges at `list`
@@ -1407,6 +1543,154 @@ fn derive_start_list(starts: &[StartEdge], out: &mut [ActiveEdge], dx: u32, dy: 
         len += usize::from(u > s.t_in);
     }
     Some(len)
+}
+
+/// The most edges of a polygon whose last-level cells the filling descent finds at
+/// once ([`CellProcessors::last_cells`]): triangles and quadrilaterals.
+const AT_ONCE_EDGES: usize = 4;
+
+/// `log2` of a last-level cell's side in [`EdgeCoord`] units.
+const CELL_V_BITS: u32 = EDGE_FRAC_BITS + 2;
+const _: () = assert!(CELL_SIDE == 4);
+
+/// The most cells of level L - 1 each way of a window of [`LastCells`].
+const WINDOW_SPAN: u32 = 4;
+
+/// A polygon's edges coded for the 8 x 8 last-level cells of a window of 4 x 4 cells
+/// of level L - 1 ([`CellProcessors::last_cells`]), each 64-cell set a word: cell
+/// `(i, j)` of the window (columns and rows of last-level cells from its corner) at
+/// bit `i + 8 j`, so that the four children of the window's cell `(dx, dy)` of level
+/// L - 1 are bits `b`, `b + 1`, `b + 8`, `b + 9` from `b = 2 dx + 16 dy`
+/// ([`children_bits`]).
+///
+/// Per edge, along its lines of cells (the window's rows for a vertical TG, its
+/// columns for a horizontal one), V at the line's two borders, least `lo` and
+/// greatest `hi`: the line's cells `s` (`0..8` across V) wholly at lower V than the
+/// edge are those with `lo >= (s + 1) side`, `s < floor(lo / side)`, and wholly at
+/// higher V those with `hi <= s side`, `s >= ceil(hi / side)` (V relative to the
+/// window's first border across V): two shifts a line, and the cells' bits from a
+/// table ([`LINE_CELLS`]). IN and OUT by LR, as the GQ ROM's codes of each child
+/// ([`edge_code`]). Only the lines the start's cells reach are coded (the others'
+/// bits are never read).
+struct LastCells {
+    /// Per edge, V at the window's first border along it, relative to its first
+    /// border across V.
+    v0: [i64; AT_ONCE_EDGES],
+    /// Per edge, V's change over a cell along it.
+    step: [i64; AT_ONCE_EDGES],
+    /// Per edge, the cells it crosses (neither IN nor OUT).
+    cross: [u64; AT_ONCE_EDGES],
+    /// Per edge, the [`ActiveEdge`]'s kind.
+    kind: [u32; AT_ONCE_EDGES],
+    /// The cells OUT for some edge.
+    outside: u64,
+    /// The cells IN for every edge.
+    inside: u64,
+    /// How many edges.
+    n: usize,
+}
+
+/// [`LastCells`]' cells of a line: at `[vertical][first][n]`, the line's first `n`
+/// cells across V (`first` 1) or its cells from the `n`-th on (`first` 0), as bits
+/// `s` (a row's, vertical TG) or `8 s` (a column's, horizontal TG), `n` in `0..=8`.
+const LINE_CELLS: [[[u64; 9]; 2]; 2] = {
+    let mut table = [[[0u64; 9]; 2]; 2];
+    let mut n = 0;
+    while n <= 8 {
+        let mut s = 0;
+        while s < 8 {
+            let (h, v) = (1u64 << (8 * s), 1u64 << s);
+            if s < n {
+                table[0][1][n] |= h;
+                table[1][1][n] |= v;
+            } else {
+                table[0][0][n] |= h;
+                table[1][0][n] |= v;
+            }
+            s += 1;
+        }
+        n += 1;
+    }
+    table
+};
+
+/// The four children of a window's cell of level L - 1 in a set of [`LastCells`]
+/// (`b = 2 dx + 16 dy`): child `c = dx + 2 dy` at bit `c`.
+#[inline(always)]
+fn children_bits(set: u64, b: u32) -> u32 {
+    let t = set >> b;
+    (t & 3 | t >> 6 & 0xC) as u32
+}
+
+impl LastCells {
+    /// The codes of `edges` (at most [`AT_ONCE_EDGES`]) for the window whose corner
+    /// is pixel `(wx, wy)`, where the cells of level L - 1 `0 ..= columns` by
+    /// `0 ..= rows` are read.
+    #[inline(always)]
+    fn new(edges: &[EdgeCode], wx: u32, wy: u32, columns: u32, rows: u32) -> Self {
+        debug_assert!(edges.len() <= AT_ONCE_EDGES && columns < WINDOW_SPAN && rows < WINDOW_SPAN);
+        let mut codes = Self {
+            v0: [0; AT_ONCE_EDGES],
+            step: [0; AT_ONCE_EDGES],
+            cross: [0; AT_ONCE_EDGES],
+            kind: [0; AT_ONCE_EDGES],
+            outside: 0,
+            inside: !0,
+            n: edges.len(),
+        };
+        for (e, edge) in edges.iter().enumerate().take(AT_ONCE_EDGES) {
+            let vertical = edge.tg() == Tg::Vertical;
+            let (t0, u0, lines, along) =
+                if vertical { (wy, wx, 2 * rows + 2, 8) } else { (wx, wy, 2 * columns + 2, 1) };
+            let cells = &LINE_CELLS[usize::from(vertical)];
+            let step = edge.slope.0 * i64::from(CELL_SIDE);
+            let v0 = edge.v_at(i64::from(t0)).0 - EdgeCoord::pixels(i64::from(u0)).0;
+            let (low_end, span) = (step.min(0), step.abs() + ((1 << CELL_V_BITS) - 1));
+            let (mut low, mut high) = (0u64, 0u64);
+            let mut lo = v0 + low_end;
+            for k in 0..lines {
+                let below = (lo >> CELL_V_BITS).clamp(0, 8) as usize;
+                let above = ((lo + span) >> CELL_V_BITS).clamp(0, 8) as usize;
+                low |= cells[1][below] << (along * k);
+                high |= cells[0][above] << (along * k);
+                lo += step;
+            }
+            let (inside, outside) = if edge.lr() { (high, low) } else { (low, high) };
+            codes.outside |= outside;
+            codes.inside &= inside;
+            codes.cross[e] = !(inside | outside);
+            codes.v0[e] = v0;
+            codes.step[e] = step;
+            codes.kind[e] = if vertical { KIND_VERTICAL } else { 0 }
+                | if edge.lr() { KIND_LR } else { 0 }
+                | if step < 0 { KIND_DOWN } else { 0 };
+        }
+        codes
+    }
+
+    /// The active edges of the window's cell at bit `b` ([`LastCells`]) into the
+    /// front of `out` (at least as long as the edges), in the polygon's order, as
+    /// [`ActiveEdge::at_cell`] gives them; returns how many.
+    #[inline(always)]
+    fn list(&self, b: u32, out: &mut [ActiveEdge]) -> usize {
+        let (i, j) = (i64::from(b & 7), i64::from(b >> 3));
+        let out = &mut out[..self.n];
+        let mut len = 0;
+        for e in 0..self.n {
+            let vertical = self.kind[e] & KIND_VERTICAL != 0;
+            let (k, s) = if vertical { (j, i) } else { (i, j) };
+            let v1 = self.v0[e] + k * self.step[e] - (s << CELL_V_BITS);
+            debug_assert!(len <= e);
+            // SAFETY: `len` counts the edges before `e` kept, so `len <= e <
+            // self.n`, which is `out.len()` (sliced above).
+            #[allow(unsafe_code, reason = "a packed list's index, at most the edge's, which the compiler cannot see")]
+            let entry = unsafe { out.get_unchecked_mut(len) };
+            *entry =
+                ActiveEdge { v1: EdgeCoord(v1), v2: EdgeCoord(v1 + self.step[e]), edge: e as u32, kind: self.kind[e] };
+            len += usize::from(self.cross[e] >> b & 1 == 1);
+        }
+        len
+    }
 }
 
 /// The most cells each way of a start at the polygon's size
@@ -2366,6 +2650,111 @@ mod tests {
             reached += want.len();
         }
         assert!(reached > 10_000, "{reached}");
+    }
+
+    /// The filling descent with a small polygon's last-level cells found at once
+    /// ([`CellProcessors::last_cells`]) hands the sink the same fragments (pixel,
+    /// cells, active edges, box), in the same order, and leaves the same marks and
+    /// queued cells on every level, as with the descent level by level: polygons of
+    /// one to six random edges (any set of lines: the descent only ANDs their
+    /// codes) and random triangles, in boxes of one to a few cells, opaque and not,
+    /// one over another, with Greene's rule and without, under several sets of
+    /// levels in use, on a square screen and on one whose cells off it are
+    /// pre-masked.
+    #[test]
+    fn last_cells_are_the_descent() {
+        let sets = [
+            MaskLevels::ALL,
+            MaskLevels::NONE,
+            MaskLevels::range(3, 6),
+            MaskLevels(1 << 2 | 1 << 4 | 1 << 6),
+            MaskLevels(1 << 1 | 1 << 5),
+            MaskLevels::mode_i(6),
+            MaskLevels::mode_ii(6),
+        ];
+        type Got = Vec<(u32, u32, u8, [u32; 4], Vec<ActiveEdge>)>;
+        let mut next = xorshift(0x0DDB_1A5E_5BAD_5EED_u64);
+        let snap = i64::from(SNAP_ONE);
+        let (mut polygons, mut at_once, mut fragments) = (0, 0, 0);
+        for (w, h) in [(256u32, 256u32), (200, 150)] {
+            for (i, &masks) in sets.iter().enumerate() {
+                for hierarchical in [false, true] {
+                    let new = || {
+                        let mut gq = CellProcessors::new(w, h, masks);
+                        gq.hierarchical = hierarchical;
+                        gq.clear();
+                        gq
+                    };
+                    let (mut once, mut split) = (new(), new());
+                    split.at_once = false;
+                    let root_side = once.side(0);
+                    let mut counters = Counters::new(once.root_level);
+                    for k in 0..600 {
+                        let (edges, bbox) = if k % 3 == 0 {
+                            let Some((edges, bbox, _)) = random_triangle(k, root_side, &mut next) else {
+                                continue;
+                            };
+                            (edges, bbox)
+                        } else {
+                            // A box of 1 to 36 pixels a side, edges through points near it.
+                            let (bw, bh) = (1 + next(36) as u32, 1 + next(36) as u32);
+                            let (x0, y0) = (next(u64::from(w - bw + 1)) as u32, next(u64::from(h - bh + 1)) as u32);
+                            let point = |next: &mut dyn FnMut(u64) -> u64| {
+                                let x =
+                                    i64::from(x0) * snap - 4 * snap + next((u64::from(bw) + 8) * snap as u64) as i64;
+                                let y =
+                                    i64::from(y0) * snap - 4 * snap + next((u64::from(bh) + 8) * snap as u64) as i64;
+                                (ScreenFx(x as i32), ScreenFx(y as i32))
+                            };
+                            let count = 1 + next(6) as usize;
+                            let edges: Vec<EdgeCode> = (0..count)
+                                .filter_map(|_| {
+                                    let (a, b) = (point(&mut next), point(&mut next));
+                                    EdgeCode::new(a, b, next(2) == 0, root_side)
+                                })
+                                .collect();
+                            if edges.is_empty() {
+                                continue;
+                            }
+                            (edges, [x0, x0 + bw, y0, y0 + bh])
+                        };
+                        let bbox = [bbox[0].min(w), bbox[1].min(w), bbox[2].min(h), bbox[3].min(h)];
+                        if bbox[0] >= bbox[1] || bbox[2] >= bbox[3] {
+                            continue;
+                        }
+                        let poly = GqPolygon { edges: &edges, opaque: next(4) != 0, bbox };
+                        let mut run = |gq: &mut CellProcessors| {
+                            let mut got: Got = Vec::new();
+                            gq.descend_filling(&poly, &mut counters, &mut |f: Fragment| {
+                                got.push((f.px, f.py, f.cells, f.bbox, f.active.to_vec()));
+                            });
+                            let queued = (gq.inside.clone(), gq.queued);
+                            gq.mark_covered_cells(&mut Vec::new());
+                            (got, queued)
+                        };
+                        let (want, want_queued) = run(&mut split);
+                        let (got, got_queued) = run(&mut once);
+                        let what = format!("screen {w}x{h}, levels {i}, hierarchical {hierarchical}, polygon {k}");
+                        assert_eq!(got, want, "{what}");
+                        assert_eq!(got_queued, want_queued, "{what}");
+                        for level in 0..=once.root_level as usize {
+                            assert_eq!(once.memories[level].bits, split.memories[level].bits, "{what}, level {level}");
+                        }
+                        polygons += 1;
+                        let [x0, x1, y0, y1] = bbox;
+                        at_once += usize::from(
+                            edges.len() <= AT_ONCE_EDGES
+                                && (x1 - 1) / 8 - x0 / 8 < WINDOW_SPAN
+                                && (y1 - 1) / 8 - y0 / 8 < WINDOW_SPAN,
+                        );
+                        fragments += want.len();
+                    }
+                }
+            }
+        }
+        // Not vacuous: most polygons take the new path, and reach fragments.
+        assert!(polygons > 10_000 && at_once > polygons / 3, "{polygons} {at_once}");
+        assert!(fragments > 50_000, "{fragments}");
     }
 
     /// The marks stay closed downward over the levels in use ([`CellProcessors::covered`]
