@@ -187,9 +187,11 @@ impl VideoProcessor {
             stretch: 0,
             fifo: [spp::Visible::default(); FIFO_CELLS],
             queued: 0,
-            runs: Vec::with_capacity(FIFO_CELLS + 1),
+            kind: Kind::None,
+            fresh: true,
+            runs: [Run { start: 0, kind: Kind::None }; FIFO_CELLS],
+            run_count: 0,
         };
-        sink.runs.push(Run { start: 0, kind: Kind::None });
         Self::run::<STATS>(
             &mut self.gq,
             &mut self.spp,
@@ -628,12 +630,19 @@ struct Colouring<'a, 'v, const STATS: bool, const STRETCHES: bool> {
     /// ([`Sink::slot`]), kept there if visible: no copy a cell.
     fifo: [spp::Visible; FIFO_CELLS],
     queued: usize,
-    /// The polygons of the queued fragments, in order: run `k` holds the fragments
-    /// from its `start` to the next run's (the last run's to `queued`), the last run
-    /// is the polygon named last's. A run is begun only after a fragment of the one
-    /// before (a polygon with no visible fragment takes the empty last run's place),
-    /// so there are at most `FIFO_CELLS + 1`; never none.
-    runs: Vec<Run<'a>>,
+    /// What colours the cells of the polygon named last (found at its first
+    /// visible cell).
+    kind: Kind<'a>,
+    /// Whether the polygon named last has no cell in the queue yet: its next
+    /// visible cell begins a run.
+    fresh: bool,
+    /// The polygons of the queued fragments, in order, `runs[..run_count]`: run `k`
+    /// holds the fragments from its `start` to the next run's (the last run's to
+    /// `queued`), at least one (so there are at most `FIFO_CELLS`). Begun at a
+    /// polygon's first visible cell, not when it is named: most of `many`'s
+    /// polygons have one or two visible cells, hidden ones none.
+    runs: [Run<'a>; FIFO_CELLS],
+    run_count: usize,
 }
 
 /// How many visible fragments wait between the SPPs and the colour computers
@@ -660,26 +669,12 @@ impl<const STATS: bool, const STRETCHES: bool> Colouring<'_, '_, STATS, STRETCHE
     /// The colour computers and the VB take every fragment waiting, in order.
     #[inline(never)]
     fn flush(&mut self) {
-        let last = self.runs.len() - 1;
-        for k in 0..=last {
+        let count = self.run_count;
+        for k in 0..count {
             let start = self.runs[k].start;
-            let end = if k < last { self.runs[k + 1].start } else { self.queued };
-            if start == end {
-                // (The last run only: a polygon with nothing visible yet.)
-                continue;
-            }
-            // Whether the polygon has one colour, found at its first queued
-            // fragment (most polygons have none).
-            let kind = match self.runs[k].kind {
-                Kind::Unknown(poly) => match self.cc.flat_color(poly) {
-                    Some(color) => Kind::Flat(color),
-                    None => Kind::Shaded(poly),
-                },
-                kind => kind,
-            };
-            self.runs[k].kind = kind;
+            let end = if k + 1 < count { self.runs[k + 1].start } else { self.queued };
             let cells = &self.fifo[start..end];
-            match kind {
+            match self.runs[k].kind {
                 Kind::Shaded(poly) => self.cc.shade_accumulate::<STATS>(
                     poly,
                     cells,
@@ -696,11 +691,26 @@ impl<const STATS: bool, const STRETCHES: bool> Colouring<'_, '_, STATS, STRETCHE
                 Kind::None | Kind::Unknown(_) => unreachable!("a cell queued before its polygon"),
             }
         }
-        // The last polygon's fragments that come next begin the queue again.
-        let kind = self.runs[last].kind;
-        self.runs.clear();
-        self.runs.push(Run { start: 0, kind });
         self.queued = 0;
+        self.run_count = 0;
+        // The next cells of the polygon named last begin a run again.
+        self.fresh = true;
+    }
+
+    /// The first queued cell of the polygon named last (or the first since a
+    /// flush) begins its run, with whether it has one colour found at its first
+    /// (most polygons have none).
+    #[inline(always)]
+    fn begin_run(&mut self) {
+        self.fresh = false;
+        if let Kind::Unknown(poly) = self.kind {
+            self.kind = match self.cc.flat_color(poly) {
+                Some(color) => Kind::Flat(color),
+                None => Kind::Shaded(poly),
+            };
+        }
+        self.runs[self.run_count & (FIFO_CELLS - 1)] = Run { start: self.queued, kind: self.kind };
+        self.run_count += 1;
     }
 }
 
@@ -719,12 +729,8 @@ impl<const STATS: bool, const STRETCHES: bool> Sink for Colouring<'_, '_, STATS,
         let poly = &self.stretches[s].polygons[p];
         // (Not when counting: the counters count the CC's pixels as the machine
         // colours them.)
-        let kind = if STATS { Kind::Shaded(poly) } else { Kind::Unknown(poly) };
-        let queued = self.queued;
-        match self.runs.last_mut() {
-            Some(run) if run.start == queued => run.kind = kind,
-            _ => self.runs.push(Run { start: queued, kind }),
-        }
+        self.kind = if STATS { Kind::Shaded(poly) } else { Kind::Unknown(poly) };
+        self.fresh = true;
     }
 
     #[inline(always)]
@@ -740,6 +746,9 @@ impl<const STATS: bool, const STRETCHES: bool> Sink for Colouring<'_, '_, STATS,
     #[inline(always)]
     fn cell(&mut self) {
         // The VB's writes are counted once per frame (`run`).
+        if self.fresh {
+            self.begin_run();
+        }
         self.queued += 1;
         if self.queued == FIFO_CELLS {
             self.flush();
