@@ -264,7 +264,7 @@ impl<'a> ColorComputers<'a> {
     }
 
     /// [`Self::shade`], then the VB's F1 of the cell's colours
-    /// ([`VideoBuffer::accumulate`]). With AVX2 (not AVX-512) and the VB's 8-bit code,
+    /// ([`VideoBuffer::accumulate`]), for each of `cells` (of `poly`) in order. With AVX2 (not AVX-512) and the VB's 8-bit code,
     /// both in one function ([`PolyAvx2::shade_avx2`] with its `f1`): no call, dispatch or set-up of
     /// F1 per cell: `fused` is [`VideoBuffer::fused_f1`], found once a frame (per
     /// cell, the features and F1's registers looked up again had cost ~20
@@ -276,7 +276,7 @@ impl<'a> ColorComputers<'a> {
     pub fn shade_accumulate<const STATS: bool>(
         &mut self,
         poly: &'a FramePolygon,
-        vis: &Visible,
+        cells: &[Visible],
         out: &mut CellColors,
         counters: &mut Counters,
         vb: &mut VideoBuffer,
@@ -288,26 +288,36 @@ impl<'a> ColorComputers<'a> {
             // which the processor has (a `FusedF1` is made only then).
             #[allow(unsafe_code, reason = "calls of functions compiled for AVX2, after detection")]
             unsafe {
-                // [`PolyAvx2::shade_avx2`]'s choice of copy, here: a function for
+                // [`PolyAvx2::shade_avx2`]'s choice of copy, here (a function for
                 // AVX2 is not inlined into this one, so there it was a call and a
-                // jump a cell (terrain: ~3 instructions a cell).
+                // jump a cell: terrain ~3 instructions a cell), and with the set-up
+                // and F1's registers once for the polygon's cells (per cell: terrain
+                // ~18 instructions a cell, 5.5 M; session 20).
                 let prepared = self.prepared_avx2(poly);
                 if prepared.texture.is_some() {
-                    prepared.shade_textured_avx2::<true>(vis, out, Some(&mut f1));
+                    for vis in cells {
+                        prepared.shade_textured_avx2::<true>(vis, out, Some(&mut f1));
+                    }
                 } else {
-                    prepared.shade_textured_avx2::<false>(vis, out, Some(&mut f1));
+                    for vis in cells {
+                        prepared.shade_textured_avx2::<false>(vis, out, Some(&mut f1));
+                    }
                 }
             };
             if STATS {
-                let visible = crate::model::stats::visible_pixels(&vis.sets);
-                counters.count_cc_cell(visible, self.drawn_texture(poly));
+                let drawn = self.drawn_texture(poly);
+                for vis in cells {
+                    counters.count_cc_cell(crate::model::stats::visible_pixels(&vis.sets), drawn);
+                }
             }
             return;
         }
         #[cfg(not(target_arch = "x86_64"))]
         let _ = fused;
-        self.shade::<STATS>(poly, vis, out, counters);
-        vb.accumulate(vis, out);
+        for vis in cells {
+            self.shade::<STATS>(poly, vis, out, counters);
+            vb.accumulate(vis, out);
+        }
     }
 
     /// Whether `poly` has a texture whose map exists (a texture whose map is
@@ -1195,7 +1205,14 @@ mod tests {
                 std::is_x86_feature_detected!("avx2") && !std::is_x86_feature_detected!("avx512f"),
                 "F1 runs inside the AVX2 colour computers exactly when they run"
             );
-            cc.shade_accumulate::<false>(&poly, &vis, &mut colors, &mut counters, &mut fused, fused_f1);
+            cc.shade_accumulate::<false>(
+                &poly,
+                std::slice::from_ref(&vis),
+                &mut colors,
+                &mut counters,
+                &mut fused,
+                fused_f1,
+            );
             cc.shade::<false>(&poly, &vis, &mut colors, &mut counters);
             apart.accumulate(&vis, &colors);
             for i in 0..16 {

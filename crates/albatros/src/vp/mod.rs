@@ -185,8 +185,12 @@ impl VideoProcessor {
             textures,
             stretches,
             stretch: 0,
+            fifo: [spp::Visible::default(); FIFO_CELLS],
+            queued: 0,
             kind: Kind::None,
-            fifo: Vec::with_capacity(FIFO_CELLS),
+            fresh: true,
+            runs: [Run { start: 0, kind: Kind::None }; FIFO_CELLS],
+            run_count: 0,
         };
         Self::run::<STATS>(
             &mut self.gq,
@@ -481,7 +485,9 @@ impl<S: Sink, const STATS: bool> gq::FragmentSink for Fragments<'_, S, STATS> {
                 let c = cells.trailing_zeros();
                 cells &= cells - 1;
                 let (px, py) = (frag.px + spp::CELL_SIDE * (c & 1), frag.py + spp::CELL_SIDE * (c >> 1));
-                let vis = self.spp.inside(px, py, self.spp_poly);
+                // The SPPs' result written where the sink keeps it ([`Sink::slot`]).
+                let vis = self.sink.slot();
+                *vis = self.spp.inside(px, py, self.spp_poly);
                 if self.hierarchical && !self.opaque && vis.covered {
                     self.covered_cells.push(gq::morton(px / spp::CELL_SIDE, py / spp::CELL_SIDE));
                 }
@@ -489,12 +495,13 @@ impl<S: Sink, const STATS: bool> gq::FragmentSink for Fragments<'_, S, STATS> {
                 *column += work::INSIDE_CELL;
                 if vis.any() {
                     *column += work::VISIBLE_CELL;
-                    self.sink.cell(&vis);
+                    self.sink.cell();
                 }
             }
             return;
         }
-        let vis = self.spp.process::<STATS>(&frag, self.edges, self.spp_poly, self.inner);
+        let vis = self.sink.slot();
+        self.spp.process_to::<STATS>(&frag, self.edges, self.spp_poly, self.inner, vis);
         if self.hierarchical && vis.covered {
             self.covered_cells.push(gq::morton(vis.px / spp::CELL_SIDE, vis.py / spp::CELL_SIDE));
         }
@@ -502,7 +509,7 @@ impl<S: Sink, const STATS: bool> gq::FragmentSink for Fragments<'_, S, STATS> {
         *column += work::EDGE_CELL;
         if vis.any() {
             *column += work::VISIBLE_CELL;
-            self.sink.cell(&vis);
+            self.sink.cell();
         }
     }
 }
@@ -515,8 +522,11 @@ trait Sink {
     /// stretch and its index there). Once per polygon, before its descent: what
     /// depends on the polygon alone is settled here, not per cell.
     fn polygon(&mut self, index: (usize, usize));
-    /// A visible fragment of the last polygon named.
-    fn cell(&mut self, vis: &spp::Visible);
+    /// Where the SPPs write their next fragment (of the last polygon named): the
+    /// sink's own memory, so that a visible fragment is kept with no copy.
+    fn slot(&mut self) -> &mut spp::Visible;
+    /// The fragment just written into [`Self::slot`] is visible.
+    fn cell(&mut self);
     /// A visible fragment of the background (after every polygon).
     fn background(&mut self, vis: &spp::Visible);
     /// A polygon [`POLYGONS_AHEAD`] later has the box `bbox` on this VP's share:
@@ -552,12 +562,14 @@ fn near(b: [u32; 4], a: [u32; 4]) -> bool {
 /// fragment.
 struct EachCell<F> {
     index: Option<(usize, usize)>,
+    /// [`Sink::slot`].
+    vis: spp::Visible,
     each: F,
 }
 
 impl<F: FnMut(Option<(usize, usize)>, &spp::Visible)> EachCell<F> {
     fn new(each: F) -> Self {
-        Self { index: None, each }
+        Self { index: None, vis: spp::Visible::default(), each }
     }
 }
 
@@ -566,8 +578,13 @@ impl<F: FnMut(Option<(usize, usize)>, &spp::Visible)> Sink for EachCell<F> {
         self.index = Some(index);
     }
 
-    fn cell(&mut self, vis: &spp::Visible) {
-        (self.each)(self.index, vis);
+    #[inline(always)]
+    fn slot(&mut self) -> &mut spp::Visible {
+        &mut self.vis
+    }
+
+    fn cell(&mut self) {
+        (self.each)(self.index, &self.vis);
     }
 
     fn background(&mut self, vis: &spp::Visible) {
@@ -575,7 +592,7 @@ impl<F: FnMut(Option<(usize, usize)>, &spp::Visible)> Sink for EachCell<F> {
     }
 }
 
-/// What [`Colouring`] does with the cells of the polygon named last.
+/// What [`Colouring`] does with the cells of a polygon ([`Run`]).
 #[derive(Clone, Copy)]
 enum Kind<'a> {
     /// No polygon named yet.
@@ -608,13 +625,28 @@ struct Colouring<'a, 'v, const STATS: bool, const STRETCHES: bool> {
     stretches: &'a [FrameList],
     /// The stretch of `cc`.
     stretch: usize,
+    /// The visible fragments the colour computers have yet to take, in order:
+    /// `fifo[..queued]`. The SPPs write the next fragment at `fifo[queued]`
+    /// ([`Sink::slot`]), kept there if visible: no copy a cell.
+    fifo: [spp::Visible; FIFO_CELLS],
+    queued: usize,
+    /// What colours the cells of the polygon named last (found at its first
+    /// visible cell).
     kind: Kind<'a>,
-    /// The visible fragments the colour computers have yet to take, in order.
-    fifo: Vec<Queued<'a>>,
+    /// Whether the polygon named last has no cell in the queue yet: its next
+    /// visible cell begins a run.
+    fresh: bool,
+    /// The polygons of the queued fragments, in order, `runs[..run_count]`: run `k`
+    /// holds the fragments from its `start` to the next run's (the last run's to
+    /// `queued`), at least one (so there are at most `FIFO_CELLS`). Begun at a
+    /// polygon's first visible cell, not when it is named: most of `many`'s
+    /// polygons have one or two visible cells, hidden ones none.
+    runs: [Run<'a>; FIFO_CELLS],
+    run_count: usize,
 }
 
 /// How many visible fragments wait between the SPPs and the colour computers
-/// before the colour computers take them all ([`Colouring::flush`]).
+/// before the colour computers take them all ([`Colouring::flush`]); a power of two.
 ///
 /// The machine's stages are a pipeline with queues between them. Here the queue lets
 /// each stage run a batch of cells in turn, its code and tables hot in the caches:
@@ -623,10 +655,13 @@ struct Colouring<'a, 'v, const STATS: bool, const STRETCHES: bool> {
 /// session 19). The order of the cells is kept, so the VB's sums are the same.
 const FIFO_CELLS: usize = 64;
 
-/// A visible fragment waiting in [`Colouring::fifo`], with what colours it
-/// ([`Kind::Shaded`] or [`Kind::Flat`]).
-struct Queued<'a> {
-    vis: spp::Visible,
+const _: () = assert!(FIFO_CELLS.is_power_of_two());
+
+/// Queued fragments of one polygon in [`Colouring::fifo`], from `start` on, and what
+/// colours them.
+#[derive(Clone, Copy)]
+struct Run<'a> {
+    start: usize,
     kind: Kind<'a>,
 }
 
@@ -634,21 +669,48 @@ impl<const STATS: bool, const STRETCHES: bool> Colouring<'_, '_, STATS, STRETCHE
     /// The colour computers and the VB take every fragment waiting, in order.
     #[inline(never)]
     fn flush(&mut self) {
-        for q in &self.fifo {
-            match q.kind {
+        let count = self.run_count;
+        for k in 0..count {
+            let start = self.runs[k].start;
+            let end = if k + 1 < count { self.runs[k + 1].start } else { self.queued };
+            let cells = &self.fifo[start..end];
+            match self.runs[k].kind {
                 Kind::Shaded(poly) => self.cc.shade_accumulate::<STATS>(
                     poly,
-                    &q.vis,
+                    cells,
                     &mut self.colors,
                     &mut self.inner,
                     self.vb,
                     self.fused,
                 ),
-                Kind::Flat(color) => self.vb.accumulate_flat(&q.vis, color),
-                Kind::None | Kind::Unknown(_) => unreachable!("a cell queued without its colouring"),
+                Kind::Flat(color) => {
+                    for vis in cells {
+                        self.vb.accumulate_flat(vis, color);
+                    }
+                }
+                Kind::None | Kind::Unknown(_) => unreachable!("a cell queued before its polygon"),
             }
         }
-        self.fifo.clear();
+        self.queued = 0;
+        self.run_count = 0;
+        // The next cells of the polygon named last begin a run again.
+        self.fresh = true;
+    }
+
+    /// The first queued cell of the polygon named last (or the first since a
+    /// flush) begins its run, with whether it has one colour found at its first
+    /// (most polygons have none).
+    #[inline(always)]
+    fn begin_run(&mut self) {
+        self.fresh = false;
+        if let Kind::Unknown(poly) = self.kind {
+            self.kind = match self.cc.flat_color(poly) {
+                Some(color) => Kind::Flat(color),
+                None => Kind::Shaded(poly),
+            };
+        }
+        self.runs[self.run_count & (FIFO_CELLS - 1)] = Run { start: self.queued, kind: self.kind };
+        self.run_count += 1;
     }
 }
 
@@ -668,6 +730,7 @@ impl<const STATS: bool, const STRETCHES: bool> Sink for Colouring<'_, '_, STATS,
         // (Not when counting: the counters count the CC's pixels as the machine
         // colours them.)
         self.kind = if STATS { Kind::Shaded(poly) } else { Kind::Unknown(poly) };
+        self.fresh = true;
     }
 
     #[inline(always)]
@@ -676,20 +739,18 @@ impl<const STATS: bool, const STRETCHES: bool> Sink for Colouring<'_, '_, STATS,
     }
 
     #[inline(always)]
-    fn cell(&mut self, vis: &spp::Visible) {
-        match self.kind {
-            Kind::Shaded(_) | Kind::Flat(_) => {}
-            Kind::Unknown(poly) => {
-                self.kind = match self.cc.flat_color(poly) {
-                    Some(color) => Kind::Flat(color),
-                    None => Kind::Shaded(poly),
-                }
-            }
-            Kind::None => unreachable!("a cell before its polygon"),
-        }
+    fn slot(&mut self) -> &mut spp::Visible {
+        &mut self.fifo[self.queued & (FIFO_CELLS - 1)]
+    }
+
+    #[inline(always)]
+    fn cell(&mut self) {
         // The VB's writes are counted once per frame (`run`).
-        self.fifo.push(Queued { vis: *vis, kind: self.kind });
-        if self.fifo.len() == FIFO_CELLS {
+        if self.fresh {
+            self.begin_run();
+        }
+        self.queued += 1;
+        if self.queued == FIFO_CELLS {
             self.flush();
         }
     }
@@ -697,7 +758,7 @@ impl<const STATS: bool, const STRETCHES: bool> Sink for Colouring<'_, '_, STATS,
     #[inline]
     fn background(&mut self, vis: &spp::Visible) {
         // (After every polygon's cells: the background is each pixel's last.)
-        if !self.fifo.is_empty() {
+        if self.queued != 0 {
             self.flush();
         }
         self.vb.accumulate_prepared(vis, &self.background);

@@ -72,7 +72,7 @@ pub fn box_pixels(px: u32, py: u32, bbox: [u32; 4]) -> u16 {
 }
 
 /// The visible part of a polygon in one cell, handed to the colour computers.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Visible {
     /// Left pixel of the cell.
     pub px: u32,
@@ -1117,6 +1117,24 @@ impl SubpixelProcessors {
         poly: &SppPolygon,
         counters: &mut Counters,
     ) -> Visible {
+        let mut vis = Visible::default();
+        self.process_to::<STATS>(frag, edges, poly, counters, &mut vis);
+        vis
+    }
+
+    /// [`Self::process`] with the result written into `out`: the VP's queue of
+    /// visible fragments, where the SPPs' result stays when visible (returned, it
+    /// was written on the stack and copied into the queue, its reads then straddling
+    /// the copy's stores: terrain ~15 instructions a cell; session 20).
+    #[inline]
+    pub fn process_to<const STATS: bool>(
+        &mut self,
+        frag: &Fragment,
+        edges: &[EdgeCode],
+        poly: &SppPolygon,
+        counters: &mut Counters,
+        out: &mut Visible,
+    ) {
         debug_assert_eq!(frag.bbox, poly.bbox, "a fragment of another polygon");
         // The usual route tested first, on its own: a compare and a branch.
         #[cfg(target_arch = "x86_64")]
@@ -1127,7 +1145,7 @@ impl SubpixelProcessors {
             // nowhere else).
             #[allow(unsafe_code, reason = "a function compiled for AVX2, after detection")]
             unsafe {
-                return self.process_avx2::<STATS, false>(frag.px, frag.py, frag.active, edges, poly, counters);
+                return self.process_avx2::<STATS, false>(frag.px, frag.py, frag.active, edges, poly, counters, out);
             }
         }
         // A small polygon's fragments (counting off) in their own copy, which first
@@ -1139,13 +1157,13 @@ impl SubpixelProcessors {
             #[allow(unsafe_code, reason = "a function compiled for AVX2, after detection")]
             unsafe {
                 return if STATS {
-                    self.process_avx2::<STATS, false>(frag.px, frag.py, frag.active, edges, poly, counters)
+                    self.process_avx2::<STATS, false>(frag.px, frag.py, frag.active, edges, poly, counters, out)
                 } else {
-                    self.process_avx2::<STATS, true>(frag.px, frag.py, frag.active, edges, poly, counters)
+                    self.process_avx2::<STATS, true>(frag.px, frag.py, frag.active, edges, poly, counters, out)
                 };
             }
         }
-        self.process_plain::<STATS>(frag, edges, poly.t, counters)
+        *out = self.process_plain::<STATS>(frag, edges, poly.t, counters);
     }
 
     /// [`Self::process`] by its definition: the fragment code ([`Self::fragment_code`]),
@@ -1187,6 +1205,7 @@ impl SubpixelProcessors {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,bmi1")]
     #[inline(never)]
+    #[allow(clippy::too_many_arguments, reason = "the fragment's values by value, and where its result goes")]
     fn process_avx2<const STATS: bool, const PRETEST: bool>(
         &mut self,
         px: u32,
@@ -1195,19 +1214,24 @@ impl SubpixelProcessors {
         edges: &[EdgeCode],
         poly: &SppPolygon,
         counters: &mut Counters,
-    ) -> Visible {
+        out: &mut Visible,
+    ) {
         use std::arch::x86_64::_mm256_andnot_si256;
         if (px | py) >= CELL_LIMIT_32 {
             // Beyond the 32-bit vertex paths (no screen the model supports): checked
             // once here, the checks of every edge's near end and vertex pixels fold.
             let frag = Fragment { px, py, active, cells: ONE_CELL, bbox: poly.bbox };
-            return self.process_plain::<STATS>(&frag, edges, poly.t, counters);
+            *out = self.process_plain::<STATS>(&frag, edges, poly.t, counters);
+            return;
         }
         // The pixels full already, in the two orders of an edge's words (none without
         // the pre-test: the vertex pixels' test of them folds).
         let full = if PRETEST {
             match self.hidden_avx2(px, py, &poly.lanes) {
-                Err(covered) => return Visible { px, py, sets: [0; 16], first: 0, covered },
+                Err(covered) => {
+                    *out = Visible { px, py, sets: [0; 16], first: 0, covered };
+                    return;
+                }
                 Ok(full) => full,
             }
         } else {
@@ -1227,7 +1251,7 @@ impl SubpixelProcessors {
             let on_screen = (self.width - px).min(CELL_SIDE) * (self.height - py).min(CELL_SIDE);
             counters.count_spp_pixels(pixels.count_ones(), on_screen);
         }
-        vis
+        *out = vis;
     }
 
     /// The fragment at pixel `(px, py)` of a polygon with box lanes `lanes` when
