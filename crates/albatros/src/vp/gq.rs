@@ -1046,15 +1046,7 @@ impl CellProcessors {
                     continue;
                 };
                 if len == 0 {
-                    // As `split_step` does with a child wholly inside.
-                    if poly.opaque && self.masks.has(level) {
-                        self.memories[level as usize].set_z(z);
-                    }
-                    if self.hierarchical && poly.opaque {
-                        self.inside[level as usize].push(z);
-                        self.queued |= 1 << level;
-                    }
-                    self.fill(cell, z, poly.opaque, spp);
+                    self.start_inside(cell, z, poly.opaque, spp);
                     continue;
                 }
                 self.split::<false, true>(cell, z, first, len, half, poly, counters, spp);
@@ -1127,14 +1119,7 @@ impl CellProcessors {
                     }
                     if inside == 0xF {
                         // Wholly inside: as the start at the polygon's size does.
-                        if poly.opaque && self.masks.has(level) {
-                            self.memories[level as usize].set_z(z);
-                        }
-                        if self.hierarchical && poly.opaque {
-                            self.inside[level as usize].push(z);
-                            self.queued |= 1 << level;
-                        }
-                        self.fill(cell, z, poly.opaque, spp);
+                        self.start_inside(cell, z, poly.opaque, spp);
                         continue;
                     }
                 }
@@ -1354,6 +1339,22 @@ impl CellProcessors {
                 );
             }
         }
+    }
+
+    /// A start's cell (Z-order index `z`) wholly inside the polygon, as
+    /// [`Self::split_step`] takes a child wholly inside: marked (opaque, its level in
+    /// use), queued for the hierarchical marks, and filled ([`Self::fill`]).
+    #[inline(always)]
+    fn start_inside(&mut self, cell: Cell, z: usize, opaque: bool, spp: &mut impl FragmentSink) {
+        let level = cell.level;
+        if opaque && self.masks.has(level) {
+            self.memories[level as usize].set_z(z);
+        }
+        if self.hierarchical && opaque {
+            self.inside[level as usize].push(z);
+            self.queued |= 1 << level;
+        }
+        self.fill(cell, z, opaque, spp);
     }
 
     /// [`Self::split`] of a cell wholly inside the polygon (Z-order index `z`): its
