@@ -677,8 +677,9 @@ unsafe fn triangle_vertices_avx2(
     let hi = _mm_unpacklo_ps(x_hi, y_hi);
     let lo = _mm_min_ps(lo, _mm_movehl_ps(lo, lo)); // x0 y0 . .
     let hi = _mm_max_ps(hi, _mm_movehl_ps(hi, hi)); // x1 y1 . .
-    let v = _mm_movelh_ps(lo, hi); // x0 y0 x1 y1
-                                   // SAFETY: the processor has AVX2 (this function's condition), so SSE4.1.
+                                                    // Lanes x0 y0 x1 y1.
+    let v = _mm_movelh_ps(lo, hi);
+    // SAFETY: the processor has AVX2 (this function's condition), so SSE4.1.
     #[allow(unsafe_code, reason = "an SSE4.1 function on a processor with AVX2")]
     let bounds = unsafe { crate::vp::box_bounds_sse41(v, width, height) };
     // To 16 bits.

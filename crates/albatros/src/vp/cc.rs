@@ -264,8 +264,9 @@ impl<'a> ColorComputers<'a> {
     }
 
     /// [`Self::shade`], then the VB's F1 of the cell's colours
-    /// ([`VideoBuffer::accumulate`]), for each of `cells` (of `poly`) in order. With AVX2 (not AVX-512) and the VB's 8-bit code,
-    /// both in one function ([`PolyAvx2::shade_avx2`] with its `f1`): no call, dispatch or set-up of
+    /// ([`VideoBuffer::accumulate`]), for each of `cells` (of `poly`) in order.
+    /// With AVX2 (not AVX-512) and the VB's 8-bit code, both in one function
+    /// ([`PolyAvx2::shade_avx2`] with its `f1`): no call, dispatch or set-up of
     /// F1 per cell: `fused` is [`VideoBuffer::fused_f1`], found once a frame (per
     /// cell, the features and F1's registers looked up again had cost ~20
     /// instructions a cell). The same colours and words. Inlined into its caller,

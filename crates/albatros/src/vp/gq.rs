@@ -1030,11 +1030,7 @@ impl CellProcessors {
             if one_read {
                 open &= !self.memories[level as usize].word(bz);
             }
-            while open != 0 {
-                let p = open.trailing_zeros() as usize;
-                open &= open - 1;
-                let z = bz << 6 | p;
-                let (dx, dy) = (bx * 8 + Z_COLUMN[p] - cx0, by * 8 + Z_ROW[p] - cy0);
+            for (z, dx, dy) in blocks.cells(bz, bx, by, open) {
                 let cell = Cell { level, x: cx0 + dx, y: cy0 + dy };
                 if !one_read && self.covered(z, level, start.level + 1) {
                     continue;
@@ -1103,11 +1099,7 @@ impl CellProcessors {
             if from.is_some() && one_read {
                 open &= !self.memories[level as usize].word(bz);
             }
-            while open != 0 {
-                let p = open.trailing_zeros() as usize;
-                open &= open - 1;
-                let z = bz << 6 | p;
-                let (dx, dy) = (bx * 8 + Z_COLUMN[p] - cx0, by * 8 + Z_ROW[p] - cy0);
+            for (z, dx, dy) in blocks.cells(bz, bx, by, open) {
                 let cell = Cell { level, x: cx0 + dx, y: cy0 + dy };
                 // The cell's children in the window's words: bits `b`, `b + 1`, `b + 8`
                 // and `b + 9`.
@@ -1759,6 +1751,22 @@ impl StartBlocks {
         let c = if by == self.cy0 >> 3 { self.cy0 & 7 } else { 0 };
         let d = if by == self.cy1 >> 3 { self.cy1 & 7 } else { 7 };
         (morton(bx, by), bx, by, Z_COLUMNS[(a | b << 3) as usize] & Z_ROWS[(c | d << 3) as usize])
+    }
+
+    /// The cells of `open` (of block `(bz, bx, by)`'s word, [`Self::block`], less
+    /// those the caller passes over) in Z order: each one's Z-order index and its
+    /// column and row from the start's first cell.
+    #[inline(always)]
+    fn cells(&self, bz: usize, bx: u32, by: u32, mut open: u64) -> impl Iterator<Item = (usize, u32, u32)> {
+        let (cx0, cy0) = (self.cx0, self.cy0);
+        std::iter::from_fn(move || {
+            if open == 0 {
+                return None;
+            }
+            let p = open.trailing_zeros() as usize;
+            open &= open - 1;
+            Some((bz << 6 | p, bx * 8 + Z_COLUMN[p] - cx0, by * 8 + Z_ROW[p] - cy0))
+        })
     }
 }
 
