@@ -2661,6 +2661,20 @@ mod tests {
         assert!(reached > 10_000, "{reached}");
     }
 
+    /// Sets of mask levels in use for the descent's tests: all, none, a range,
+    /// every other level, two apart, and the papers' modes I and II.
+    fn mask_level_sets() -> [MaskLevels; 7] {
+        [
+            MaskLevels::ALL,
+            MaskLevels::NONE,
+            MaskLevels::range(3, 6),
+            MaskLevels(1 << 2 | 1 << 4 | 1 << 6),
+            MaskLevels(1 << 1 | 1 << 5),
+            MaskLevels::mode_i(6),
+            MaskLevels::mode_ii(6),
+        ]
+    }
+
     /// The filling descent with a small polygon's last-level cells found at once
     /// ([`CellProcessors::last_cells`]) hands the sink the same fragments (pixel,
     /// cells, active edges, box), in the same order, and leaves the same marks and
@@ -2672,15 +2686,7 @@ mod tests {
     /// pre-masked.
     #[test]
     fn last_cells_are_the_descent() {
-        let sets = [
-            MaskLevels::ALL,
-            MaskLevels::NONE,
-            MaskLevels::range(3, 6),
-            MaskLevels(1 << 2 | 1 << 4 | 1 << 6),
-            MaskLevels(1 << 1 | 1 << 5),
-            MaskLevels::mode_i(6),
-            MaskLevels::mode_ii(6),
-        ];
+        let sets = mask_level_sets();
         type Got = Vec<(u32, u32, u8, [u32; 4], Vec<ActiveEdge>)>;
         let mut next = xorshift(0x0DDB_1A5E_5BAD_5EED_u64);
         let snap = i64::from(SNAP_ONE);
@@ -2775,14 +2781,7 @@ mod tests {
     #[test]
     fn marks_are_closed_downward() {
         let (w, h) = (200u32, 150u32);
-        let sets = [
-            MaskLevels::ALL,
-            MaskLevels::NONE,
-            MaskLevels::range(3, 6),
-            MaskLevels(1 << 2 | 1 << 4 | 1 << 6),
-            MaskLevels(1 << 1 | 1 << 5),
-            MaskLevels::mode_i(6),
-        ];
+        let sets = mask_level_sets();
         let mut next = xorshift(0x2545_F491_4F6C_DD1D_u64);
         for (i, &masks) in sets.iter().enumerate() {
             for counting in [false, true] {
