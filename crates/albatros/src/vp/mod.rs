@@ -480,6 +480,12 @@ impl<S: Sink, const STATS: bool> gq::FragmentSink for Fragments<'_, S, STATS> {
             // four siblings at once) need no look-ups, and an opaque
             // polygon's are marked covered by the GQ
             // ([`CellProcessors::descend_filling`]).
+            // The memories under the cell of level L - 1 some cells further on in
+            // Z order, where a large polygon's fill goes next (a hint).
+            let (x, y) = unmorton(gq::morton(frag.px / 8, frag.py / 8) + FILL_AHEAD);
+            let ahead = [x * 8, x * 8 + 8, y * 8, y * 8 + 8];
+            self.spp.prefetch_box(ahead);
+            self.sink.ahead(ahead);
             let mut cells = frag.cells;
             while cells != 0 {
                 let c = cells.trailing_zeros();
@@ -487,13 +493,13 @@ impl<S: Sink, const STATS: bool> gq::FragmentSink for Fragments<'_, S, STATS> {
                 let (px, py) = (frag.px + spp::CELL_SIDE * (c & 1), frag.py + spp::CELL_SIDE * (c >> 1));
                 // The SPPs' result written where the sink keeps it ([`Sink::slot`]).
                 let vis = self.sink.slot();
-                *vis = self.spp.inside(px, py, self.spp_poly);
+                let any = self.spp.inside_to(px, py, self.spp_poly, vis);
                 if self.hierarchical && !self.opaque && vis.covered {
                     self.covered_cells.push(gq::morton(px / spp::CELL_SIDE, py / spp::CELL_SIDE));
                 }
                 let column = &mut self.work[(px / spp::CELL_SIDE) as usize];
                 *column += work::INSIDE_CELL;
-                if vis.any() {
+                if any {
                     *column += work::VISIBLE_CELL;
                     self.sink.cell();
                 }
@@ -501,13 +507,13 @@ impl<S: Sink, const STATS: bool> gq::FragmentSink for Fragments<'_, S, STATS> {
             return;
         }
         let vis = self.sink.slot();
-        self.spp.process_to::<STATS>(&frag, self.edges, self.spp_poly, self.inner, vis);
+        let any = self.spp.process_to::<STATS>(&frag, self.edges, self.spp_poly, self.inner, vis);
         if self.hierarchical && vis.covered {
-            self.covered_cells.push(gq::morton(vis.px / spp::CELL_SIDE, vis.py / spp::CELL_SIDE));
+            self.covered_cells.push(gq::morton(frag.px / spp::CELL_SIDE, frag.py / spp::CELL_SIDE));
         }
         let column = &mut self.work[(frag.px / spp::CELL_SIDE) as usize];
         *column += work::EDGE_CELL;
-        if vis.any() {
+        if any {
             *column += work::VISIBLE_CELL;
             self.sink.cell();
         }
@@ -535,6 +541,24 @@ trait Sink {
     fn ahead(&mut self, bbox: [u32; 4]) {
         let _ = bbox;
     }
+}
+
+/// How many cells of level L - 1 ahead in Z order a fill asks for the memories of.
+const FILL_AHEAD: usize = 4;
+
+/// The cell `(x, y)` of Z-order index `z` ([`gq::morton`]'s inverse).
+#[inline(always)]
+fn unmorton(z: usize) -> (u32, u32) {
+    #[inline(always)]
+    fn compact(v: u64) -> u32 {
+        let v = v & 0x5555_5555_5555_5555;
+        let v = (v | v >> 1) & 0x3333_3333_3333_3333;
+        let v = (v | v >> 2) & 0x0F0F_0F0F_0F0F_0F0F;
+        let v = (v | v >> 4) & 0x00FF_00FF_00FF_00FF;
+        let v = (v | v >> 8) & 0x0000_FFFF_0000_FFFF;
+        ((v | v >> 16) & 0xFFFF_FFFF) as u32
+    }
+    (compact(z as u64), compact((z as u64) >> 1))
 }
 
 /// How many polygons ahead of the one being rendered the VP asks for the video

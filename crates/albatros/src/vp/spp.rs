@@ -1125,7 +1125,10 @@ impl SubpixelProcessors {
     /// [`Self::process`] with the result written into `out`: the VP's queue of
     /// visible fragments, where the SPPs' result stays when visible (returned, it
     /// was written on the stack and copied into the queue, its reads then straddling
-    /// the copy's stores: terrain ~15 instructions a cell; session 20).
+    /// the copy's stores: terrain ~15 instructions a cell; session 20). Returns
+    /// whether any subpixel is visible ([`Visible::any`] of `out`), found in a
+    /// register: read back from `out`, the sets' 16-byte loads waited on the
+    /// 32-byte store that had just written them (no store forwarding).
     #[inline]
     pub fn process_to<const STATS: bool>(
         &mut self,
@@ -1134,7 +1137,7 @@ impl SubpixelProcessors {
         poly: &SppPolygon,
         counters: &mut Counters,
         out: &mut Visible,
-    ) {
+    ) -> bool {
         debug_assert_eq!(frag.bbox, poly.bbox, "a fragment of another polygon");
         // The usual route tested first, on its own: a compare and a branch.
         #[cfg(target_arch = "x86_64")]
@@ -1164,6 +1167,7 @@ impl SubpixelProcessors {
             }
         }
         *out = self.process_plain::<STATS>(frag, edges, poly.t, counters);
+        out.any()
     }
 
     /// [`Self::process`] by its definition: the fragment code ([`Self::fragment_code`]),
@@ -1215,14 +1219,14 @@ impl SubpixelProcessors {
         poly: &SppPolygon,
         counters: &mut Counters,
         out: &mut Visible,
-    ) {
+    ) -> bool {
         use std::arch::x86_64::_mm256_andnot_si256;
         if (px | py) >= CELL_LIMIT_32 {
             // Beyond the 32-bit vertex paths (no screen the model supports): checked
             // once here, the checks of every edge's near end and vertex pixels fold.
             let frag = Fragment { px, py, active, cells: ONE_CELL, bbox: poly.bbox };
             *out = self.process_plain::<STATS>(&frag, edges, poly.t, counters);
-            return;
+            return out.any();
         }
         // The pixels full already, in the two orders of an edge's words (none without
         // the pre-test: the vertex pixels' test of them folds).
@@ -1230,7 +1234,7 @@ impl SubpixelProcessors {
             match self.hidden_avx2(px, py, &poly.lanes) {
                 Err(covered) => {
                     *out = Visible { px, py, sets: [0; 16], first: 0, covered };
-                    return;
+                    return false;
                 }
                 Ok(full) => full,
             }
@@ -1245,13 +1249,13 @@ impl SubpixelProcessors {
             table_code_avx2_body!(&*self, px, py, active, edges, false, full)
         };
         let code = _mm256_andnot_si256(box_outside_at_avx2(px, py, &poly.lanes), code);
-        let (vis, pixels) = self.apply_avx2::<STATS>(px, py, code, &poly.thin);
+        let (any, pixels) = self.apply_avx2::<STATS>(px, py, code, &poly.thin, out);
         if STATS {
             counters.spp.edge_lookups += 16 * active.len() as u64;
             let on_screen = (self.width - px).min(CELL_SIDE) * (self.height - py).min(CELL_SIDE);
             counters.count_spp_pixels(pixels.count_ones(), on_screen);
         }
-        *out = vis;
+        any
     }
 
     /// The fragment at pixel `(px, py)` of a polygon with box lanes `lanes` when
@@ -1297,22 +1301,24 @@ impl SubpixelProcessors {
         Ok([_mm_movemask_epi8(by_column) as u16, _mm_movemask_epi8(bytes) as u16])
     }
 
-    /// [`Self::process`] of a fragment that no edge crosses (a cell wholly inside its
-    /// polygon: every pixel's code is [`FULL`]), with counting off: no look-ups, and
-    /// the same visible sets and mask memory (tested against `process`). Only the
-    /// dispatch is inlined, to [`Self::inside_avx2`] or [`Self::inside_plain`].
+    /// [`Self::process_to`] of a fragment that no edge crosses (a cell wholly inside
+    /// its polygon: every pixel's code is [`FULL`]), with counting off: no look-ups,
+    /// and the same visible sets and mask memory (tested against `process`), written
+    /// into `out`; returns whether any subpixel is visible. Only the dispatch is
+    /// inlined, to [`Self::inside_avx2`] or [`Self::inside_plain`].
     #[inline]
-    pub fn inside(&mut self, px: u32, py: u32, poly: &SppPolygon) -> Visible {
+    pub fn inside_to(&mut self, px: u32, py: u32, poly: &SppPolygon, out: &mut Visible) -> bool {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: `inside_avx2` only needs the features `has_avx2` found the
             // processor to have when `self` was made (`avx2` is set nowhere else).
             #[allow(unsafe_code, reason = "a function compiled for AVX2, after detection")]
             unsafe {
-                return self.inside_avx2(px, py, &poly.thin);
+                return self.inside_avx2(px, py, &poly.thin, out);
             }
         }
-        self.inside_plain(px, py, poly.t)
+        *out = self.inside_plain(px, py, poly.t);
+        out.any()
     }
 
     /// [`Self::inside`] by its definition: [`Self::apply`] of an all-ones code.
@@ -1325,14 +1331,16 @@ impl SubpixelProcessors {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     #[inline(never)]
-    fn inside_avx2(&mut self, px: u32, py: u32, thin: &Words16) -> Visible {
-        self.apply_avx2::<false>(px, py, std::arch::x86_64::_mm256_set1_epi16(-1), thin).0
+    fn inside_avx2(&mut self, px: u32, py: u32, thin: &Words16, out: &mut Visible) -> bool {
+        self.apply_avx2::<false>(px, py, std::arch::x86_64::_mm256_set1_epi16(-1), thin, out).0
     }
 
     /// [`Self::apply`] in AVX2 with the code in a register and the thinning pattern
     /// `thin` (the polygon's, [`SppPolygon`]): the cell's 16 pixels are one
     /// register's lanes, the first writes and the pixels with a visible subpixel a
     /// compare with zero and a pack each ([`lane_bits_avx2`]), the cover one `vptest`.
+    /// The visible fragment is written into `out`; returns whether any subpixel is
+    /// visible (one `vptest`) and, when counting, the pixels with a visible subpixel.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     #[inline]
@@ -1342,10 +1350,12 @@ impl SubpixelProcessors {
         py: u32,
         code: std::arch::x86_64::__m256i,
         thin: &Words16,
-    ) -> (Visible, u16) {
+        out: &mut Visible,
+    ) -> (bool, u16) {
         use std::arch::x86_64::{
             __m256i, _mm256_and_si256, _mm256_andnot_si256, _mm256_cmpeq_epi16, _mm256_load_si256, _mm256_or_si256,
-            _mm256_set1_epi16, _mm256_setzero_si256, _mm256_store_si256, _mm256_testc_si256,
+            _mm256_set1_epi16, _mm256_setzero_si256, _mm256_store_si256, _mm256_storeu_si256, _mm256_testc_si256,
+            _mm256_testz_si256,
         };
         let thin: *const __m256i = thin.0.as_ptr().cast();
         let cell = (py / CELL_SIDE) as usize * self.stride + (px / CELL_SIDE) as usize;
@@ -1368,13 +1378,13 @@ impl SubpixelProcessors {
         // Covered: `!now & ones` is zero.
         let covered = _mm256_testc_si256(now, _mm256_set1_epi16(-1)) != 0;
         let pixels = if STATS { !lane_bits_avx2(none) } else { 0 };
-        let mut sets = Aligned32([0u16; 16]);
-        // SAFETY: `sets` is 32 bytes aligned to 32, a register's size.
-        #[allow(unsafe_code, reason = "an aligned store into an array of a register's size")]
+        // SAFETY: `out.sets` is 16 `u16`, the 32 bytes the unaligned store writes.
+        #[allow(unsafe_code, reason = "an unaligned store into an array of a register's size")]
         unsafe {
-            _mm256_store_si256(sets.0.as_mut_ptr().cast(), visible);
+            _mm256_storeu_si256(out.sets.as_mut_ptr().cast(), visible);
         }
-        (Visible { px, py, sets: sets.0, first, covered }, pixels)
+        (out.px, out.py, out.first, out.covered) = (px, py, first, covered);
+        (_mm256_testz_si256(visible, visible) == 0, pixels)
     }
 
     /// The mask memory step of [`Self::process`] for the cell at pixel `(px, py)`
@@ -3227,8 +3237,10 @@ mod tests {
             };
             let poly = a.polygon(super::super::gq::NO_BOX, t);
             let want = a.process::<false>(&frag, &[], &poly, &mut Counters::new(3));
-            let got = b.inside(4 * cx, 4 * cy, &poly);
+            let mut got = Visible { px: 1, py: 2, sets: [0x5A5A; 16], first: 3, covered: true };
+            let any = b.inside_to(4 * cx, 4 * cy, &poly, &mut got);
             assert_eq!(got, want, "case {k}");
+            assert_eq!(any, want.any(), "case {k}");
             assert_eq!(b.masks[cell], a.masks[cell], "case {k}");
         }
     }
