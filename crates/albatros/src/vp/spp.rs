@@ -895,6 +895,17 @@ impl SubpixelProcessors {
         self.clean = true;
     }
 
+    /// Puts the memory back in its cleared state after a pass with no background
+    /// ([`super::VideoProcessor::raster`]): the copy [`Self::clear`] would make at
+    /// the next frame's start, made now (nothing when the memory is clean already,
+    /// or when the share has moved since, which `clear` handles whole).
+    pub fn restore(&mut self) {
+        if !self.clean && self.cleared_share == Some(self.share) {
+            self.masks.copy_from_slice(&self.cleared);
+            self.clean = true;
+        }
+    }
+
     /// Pixels of this SPP set's share on the screen (valid after [`Self::clear`]):
     /// each has 16 open subpixels and gets exactly one first write per frame.
     pub fn open_pixels(&self) -> u64 {
