@@ -1571,6 +1571,12 @@ struct LastCells {
     v0: [i64; AT_ONCE_EDGES],
     /// Per edge, V's change over a cell along it.
     step: [i64; AT_ONCE_EDGES],
+    /// Per edge, V's change (relative to the cell) a cell along the window's
+    /// columns and a cell along its rows: a cell `(i, j)` of the window has V1 `v0 +
+    /// i di + j dj` (for a vertical TG, `di` is a cell's side across V, negated, and
+    /// `dj` the step; for a horizontal one the other way round).
+    di: [i64; AT_ONCE_EDGES],
+    dj: [i64; AT_ONCE_EDGES],
     /// Per edge, the cells it crosses (neither IN nor OUT).
     cross: [u64; AT_ONCE_EDGES],
     /// Per edge, the [`ActiveEdge`]'s kind.
@@ -1625,6 +1631,8 @@ impl LastCells {
         let mut codes = Self {
             v0: [0; AT_ONCE_EDGES],
             step: [0; AT_ONCE_EDGES],
+            di: [0; AT_ONCE_EDGES],
+            dj: [0; AT_ONCE_EDGES],
             cross: [0; AT_ONCE_EDGES],
             kind: [0; AT_ONCE_EDGES],
             outside: 0,
@@ -1654,6 +1662,8 @@ impl LastCells {
             codes.cross[e] = !(inside | outside);
             codes.v0[e] = v0;
             codes.step[e] = step;
+            let across = -(1i64 << CELL_V_BITS);
+            (codes.di[e], codes.dj[e]) = if vertical { (across, step) } else { (step, across) };
             codes.kind[e] = if vertical { KIND_VERTICAL } else { 0 }
                 | if edge.lr() { KIND_LR } else { 0 }
                 | if step < 0 { KIND_DOWN } else { 0 };
@@ -1668,19 +1678,25 @@ impl LastCells {
     fn list(&self, b: u32, out: &mut [ActiveEdge]) -> usize {
         let (i, j) = (i64::from(b & 7), i64::from(b >> 3));
         let out = &mut out[..self.n];
+        // The edges crossing the cell, bit `e` for edge `e` (the sets of the edges
+        // past the polygon's are empty).
+        let mut crossing = 0u32;
+        for (e, cross) in self.cross.iter().enumerate() {
+            crossing |= ((cross >> b & 1) as u32) << e;
+        }
         let mut len = 0;
-        for e in 0..self.n {
-            let vertical = self.kind[e] & KIND_VERTICAL != 0;
-            let (k, s) = if vertical { (j, i) } else { (i, j) };
-            let v1 = self.v0[e] + k * self.step[e] - (s << CELL_V_BITS);
+        while crossing != 0 {
+            let e = crossing.trailing_zeros() as usize;
+            crossing &= crossing - 1;
+            let v1 = self.v0[e] + i * self.di[e] + j * self.dj[e];
             debug_assert!(len <= e);
-            // SAFETY: `len` counts the edges before `e` kept, so `len <= e <
+            // SAFETY: `len` counts the crossing edges before `e`, so `len <= e <
             // self.n`, which is `out.len()` (sliced above).
             #[allow(unsafe_code, reason = "a packed list's index, at most the edge's, which the compiler cannot see")]
             let entry = unsafe { out.get_unchecked_mut(len) };
             *entry =
                 ActiveEdge { v1: EdgeCoord(v1), v2: EdgeCoord(v1 + self.step[e]), edge: e as u32, kind: self.kind[e] };
-            len += usize::from(self.cross[e] >> b & 1 == 1);
+            len += 1;
         }
         len
     }
