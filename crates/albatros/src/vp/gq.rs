@@ -1561,8 +1561,8 @@ const WINDOW_SPAN: u32 = 4;
 /// greatest `hi`: the line's cells `s` (`0..8` across V) wholly at lower V than the
 /// edge are those with `lo >= (s + 1) side`, `s < floor(lo / side)`, and wholly at
 /// higher V those with `hi <= s side`, `s >= ceil(hi / side)` (V relative to the
-/// window's first border across V): two shifts a line, and the cells' bits from a
-/// table ([`LINE_CELLS`]). IN and OUT by LR, as the GQ ROM's codes of each child
+/// window's first border across V): two shifts a line, and the cells' bits, in
+/// their places in the window, from a table ([`LINE_CELLS`]). IN and OUT by LR, as the GQ ROM's codes of each child
 /// ([`edge_code`]). Only the lines the start's cells reach are coded (the others'
 /// bits are never read).
 struct LastCells {
@@ -1589,26 +1589,28 @@ struct LastCells {
     n: usize,
 }
 
-/// [`LastCells`]' cells of a line: at `[vertical][first][n]`, the line's first `n`
-/// cells across V (`first` 1) or its cells from the `n`-th on (`first` 0), as bits
-/// `s` (a row's, vertical TG) or `8 s` (a column's, horizontal TG), `n` in `0..=8`.
-const LINE_CELLS: [[[u64; 9]; 2]; 2] = {
-    let mut table = [[[0u64; 9]; 2]; 2];
-    let mut n = 0;
-    while n <= 8 {
-        let mut s = 0;
-        while s < 8 {
-            let (h, v) = (1u64 << (8 * s), 1u64 << s);
-            if s < n {
-                table[0][1][n] |= h;
-                table[1][1][n] |= v;
-            } else {
-                table[0][0][n] |= h;
-                table[1][0][n] |= v;
+/// [`LastCells`]' cells of a line: at `[vertical][k][first][n]`, line `k`'s first
+/// `n` cells across V (`first` 1) or its cells from the `n`-th on (`first` 0), as
+/// bits `s + 8 k` (row `k`'s, vertical TG) or `8 s + k` (column `k`'s, horizontal
+/// TG), `n` in `0..=8`: each line's sets in place, so that a line costs no shift by
+/// its place (2.3 KB).
+const LINE_CELLS: [[[[u64; 9]; 2]; 8]; 2] = {
+    let mut table = [[[[0u64; 9]; 2]; 8]; 2];
+    let mut k = 0;
+    while k < 8 {
+        let mut n = 0;
+        while n <= 8 {
+            let mut s = 0;
+            while s < 8 {
+                let (h, v) = (1u64 << (8 * s + k), 1u64 << (s + 8 * k));
+                let first = if s < n { 1 } else { 0 };
+                table[0][k][first][n] |= h;
+                table[1][k][first][n] |= v;
+                s += 1;
             }
-            s += 1;
+            n += 1;
         }
-        n += 1;
+        k += 1;
     }
     table
 };
@@ -1641,19 +1643,17 @@ impl LastCells {
         };
         for (e, edge) in edges.iter().enumerate().take(AT_ONCE_EDGES) {
             let vertical = edge.tg() == Tg::Vertical;
-            let (t0, u0, lines, along) =
-                if vertical { (wy, wx, 2 * rows + 2, 8) } else { (wx, wy, 2 * columns + 2, 1) };
-            let cells = &LINE_CELLS[usize::from(vertical)];
+            let (t0, u0, lines) = if vertical { (wy, wx, 2 * rows + 2) } else { (wx, wy, 2 * columns + 2) };
             let step = edge.slope.0 * i64::from(CELL_SIDE);
             let v0 = edge.v_at(i64::from(t0)).0 - EdgeCoord::pixels(i64::from(u0)).0;
             let (low_end, span) = (step.min(0), step.abs() + ((1 << CELL_V_BITS) - 1));
             let (mut low, mut high) = (0u64, 0u64);
             let mut lo = v0 + low_end;
-            for k in 0..lines {
+            for line in LINE_CELLS[usize::from(vertical)].iter().take(lines as usize) {
                 let below = (lo >> CELL_V_BITS).clamp(0, 8) as usize;
                 let above = ((lo + span) >> CELL_V_BITS).clamp(0, 8) as usize;
-                low |= cells[1][below] << (along * k);
-                high |= cells[0][above] << (along * k);
+                low |= line[1][below];
+                high |= line[0][above];
                 lo += step;
             }
             let (inside, outside) = if edge.lr() { (high, low) } else { (low, high) };
