@@ -1615,6 +1615,68 @@ const LINE_CELLS: [[[[u64; 9]; 2]; 8]; 2] = {
     table
 };
 
+/// [`LastCells`]' sets of an edge's first `lines` lines (an even number, at most 8),
+/// `(low, high)`: the cells wholly at lower V than the edge and those wholly at
+/// higher V, by `table` (the TG's [`LINE_CELLS`]), line `k` of least V `lo + k step`
+/// and greatest that plus `span`. In SSE4.1 on x86-64 builds that enable it (the
+/// project's x86-64-v2 does): two lines a step, their four cell counts
+/// `clamp(v >> CELL_V_BITS, 0, 8)` at once; elsewhere [`line_sets_plain`] (tested
+/// against each other).
+#[inline(always)]
+fn line_sets(table: &[[[u64; 9]; 2]; 8], lo: i64, step: i64, span: i64, lines: usize) -> (u64, u64) {
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse4.1"))]
+    {
+        use std::arch::x86_64::*;
+        debug_assert!(lines % 2 == 0 && lines <= 8);
+        let (mut low, mut high) = (0u64, 0u64);
+        // SAFETY: SSE2 and SSE4.1 operations, which the build enables (this block is
+        // compiled only then); the table reads' indices are clamped to `0..=8` just
+        // before, within the rows of 9.
+        #[allow(unsafe_code, reason = "SSE4.1 in a build that requires it; table indices clamped in SIMD")]
+        unsafe {
+            // Lines `k` and `k + 1`, V as `i64` in two lanes.
+            let mut v = _mm_set_epi64x(lo + step, lo);
+            let (span, two_steps) = (_mm_set1_epi64x(span), _mm_set1_epi64x(2 * step));
+            let (zero, eight) = (_mm_setzero_si128(), _mm_set1_epi32(8));
+            for pair in table.chunks_exact(2).take(lines / 2) {
+                let far = _mm_add_epi64(v, span);
+                // The high halves `floor(V / 2^32)` (exact as `i32`) of the lines' least
+                // and greatest V, then `floor(V / 2^CELL_V_BITS)` by a further shift.
+                let halves =
+                    _mm_castps_si128(_mm_shuffle_ps::<0b11_01_11_01>(_mm_castsi128_ps(v), _mm_castsi128_ps(far)));
+                const _: () = assert!(CELL_V_BITS == 32 + 2);
+                let counts = _mm_min_epi32(_mm_max_epi32(_mm_srai_epi32::<2>(halves), zero), eight);
+                let (a, b) = (_mm_cvtsi128_si64(counts) as u64, _mm_extract_epi64::<1>(counts) as u64);
+                let cell = |line: &[[u64; 9]; 2], first: usize, n: u64| *line[first].get_unchecked(n as u32 as usize);
+                low |= cell(&pair[0], 1, a) | cell(&pair[1], 1, a >> 32);
+                high |= cell(&pair[0], 0, b) | cell(&pair[1], 0, b >> 32);
+                v = _mm_add_epi64(v, two_steps);
+            }
+        }
+        (low, high)
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "sse4.1")))]
+    line_sets_plain(table, lo, step, span, lines)
+}
+
+/// [`line_sets`] a line at a time.
+#[cfg_attr(
+    all(target_arch = "x86_64", target_feature = "sse4.1"),
+    allow(dead_code, reason = "the other builds' copy, tested against the SSE4.1 one")
+)]
+#[inline(always)]
+fn line_sets_plain(table: &[[[u64; 9]; 2]; 8], mut lo: i64, step: i64, span: i64, lines: usize) -> (u64, u64) {
+    let (mut low, mut high) = (0u64, 0u64);
+    for line in table.iter().take(lines) {
+        let below = (lo >> CELL_V_BITS).clamp(0, 8) as usize;
+        let above = ((lo + span) >> CELL_V_BITS).clamp(0, 8) as usize;
+        low |= line[1][below];
+        high |= line[0][above];
+        lo += step;
+    }
+    (low, high)
+}
+
 /// The four children of a window's cell of level L - 1 in a set of [`LastCells`]
 /// (`b = 2 dx + 16 dy`): child `c = dx + 2 dy` at bit `c`.
 #[inline(always)]
@@ -1647,15 +1709,7 @@ impl LastCells {
             let step = edge.slope.0 * i64::from(CELL_SIDE);
             let v0 = edge.v_at(i64::from(t0)).0 - EdgeCoord::pixels(i64::from(u0)).0;
             let (low_end, span) = (step.min(0), step.abs() + ((1 << CELL_V_BITS) - 1));
-            let (mut low, mut high) = (0u64, 0u64);
-            let mut lo = v0 + low_end;
-            for line in LINE_CELLS[usize::from(vertical)].iter().take(lines as usize) {
-                let below = (lo >> CELL_V_BITS).clamp(0, 8) as usize;
-                let above = ((lo + span) >> CELL_V_BITS).clamp(0, 8) as usize;
-                low |= line[1][below];
-                high |= line[0][above];
-                lo += step;
-            }
+            let (low, high) = line_sets(&LINE_CELLS[usize::from(vertical)], v0 + low_end, step, span, lines as usize);
             let (inside, outside) = if edge.lr() { (high, low) } else { (low, high) };
             codes.outside |= outside;
             codes.inside &= inside;
@@ -2314,6 +2368,29 @@ mod tests {
             let want: [usize; 4] = std::array::from_fn(|c| ends[c] + (crossed >> c & 1) as usize);
             assert_eq!(fast_ends, want);
         }
+    }
+
+    /// [`line_sets`] (SSE4.1 in this build) gives [`line_sets_plain`]'s sets: both
+    /// TG's tables, every even number of lines, V and steps from well below the
+    /// window to well above it (every count clamped both ways), spans of a cell to
+    /// two.
+    #[test]
+    fn line_sets_are_the_plain_ones() {
+        let mut next = xorshift(0x9E37_79B9_7F4A_7C15);
+        let cell = 1i64 << CELL_V_BITS;
+        let (mut clamped_low, mut clamped_high) = (0, 0);
+        for _ in 0..200_000 {
+            let table = &LINE_CELLS[next(2) as usize];
+            let lines = 2 + 2 * next(4) as usize;
+            let step = next(2 * cell as u64 + 1) as i64 - cell;
+            let span = step.abs() + cell - 1;
+            let lo = next(32 * cell as u64) as i64 - 12 * cell;
+            let want = line_sets_plain(table, lo, step, span, lines);
+            assert_eq!(line_sets(table, lo, step, span, lines), want, "lo {lo} step {step} lines {lines}");
+            clamped_low += usize::from(lo < 0);
+            clamped_high += usize::from(lo + span > 8 * cell);
+        }
+        assert!(clamped_low > 10_000 && clamped_high > 10_000, "{clamped_low} {clamped_high}");
     }
 
     /// [`derive_start_list`] gives [`ActiveEdge::at_cell`]'s values for the cells of a
