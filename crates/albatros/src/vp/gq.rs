@@ -1087,7 +1087,7 @@ impl CellProcessors {
         let last = self.root_level;
         let level = last - 1;
         let n = poly.edges.len();
-        let codes = LastCells::new(poly.edges, cx0 * 8, cy0 * 8, columns, rows);
+        let codes = LastCells::new(poly.edges, cx0 * 8, cy0 * 8, columns, rows, poly.bbox);
         let list = 4 * self.stride * last as usize;
         // With the level in use, its own mark decides ([`Self::covered`]): an aligned
         // 8 x 8 block's marks are one word, read once for its cells.
@@ -1115,13 +1115,16 @@ impl CellProcessors {
                         continue;
                     }
                 }
-                // The split of `cell` ([`Self::split_step`], its children last-level).
-                let m =
-                    u32::from(self.memories[last as usize].children(z) | !children_in_box(cell, 2, poly.bbox) & 0xF);
+                // The split of `cell` ([`Self::split_step`], its children last-level;
+                // the children the box does not meet are OUT in `codes`, where the split
+                // takes them as masked: the same marks and cells).
+                let m = u32::from(self.memories[last as usize].children(z));
                 if m == 0xF {
                     continue;
                 }
-                let (cri, ci) = (!m & !outside & 0xF, !m & inside & 0xF);
+                // (A child the box does not meet is OUT, so not IN: the split's mask.)
+                let cri = !m & !outside & 0xF;
+                let ci = cri & inside;
                 if poly.opaque && self.masks.has(last) {
                     self.memories[last as usize].set_children(z, ci as u8);
                 }
@@ -1677,6 +1680,23 @@ fn line_sets_plain(table: &[[[u64; 9]; 2]; 8], mut lo: i64, step: i64, span: i64
     (low, high)
 }
 
+/// The last-level cells of a window of [`LastCells`] (corner pixel `(wx, wy)`) that
+/// the box `bbox` (pixels, `[x0, x1) x [y0, y1)`, not empty, within the window)
+/// meets, as a set of the window: the columns of cells from `x0`'s to `x1 - 1`'s,
+/// the rows likewise. The split treats the others as masked ([`children_in_box`]):
+/// their codes clip to nothing; [`CellProcessors::last_cells`] takes them as OUT
+/// (so not IN), once a polygon rather than by comparisons a cell.
+#[inline(always)]
+fn window_box(bbox: [u32; 4], wx: u32, wy: u32) -> u64 {
+    let [x0, x1, y0, y1] = bbox;
+    let (i0, i1) = ((x0 - wx) / CELL_SIDE, (x1 - 1 - wx) / CELL_SIDE);
+    let (j0, j1) = ((y0 - wy) / CELL_SIDE, (y1 - 1 - wy) / CELL_SIDE);
+    debug_assert!(i0 <= i1 && i1 < 8 && j0 <= j1 && j1 < 8);
+    let columns = (0xFFu64 >> (7 - i1) & 0xFF << i0) * 0x0101_0101_0101_0101;
+    let rows = !0u64 >> (8 * (7 - j1)) & !0u64 << (8 * j0);
+    columns & rows
+}
+
 /// The four children of a window's cell of level L - 1 in a set of [`LastCells`]
 /// (`b = 2 dx + 16 dy`): child `c = dx + 2 dy` at bit `c`.
 #[inline(always)]
@@ -1688,9 +1708,10 @@ fn children_bits(set: u64, b: u32) -> u32 {
 impl LastCells {
     /// The codes of `edges` (at most [`AT_ONCE_EDGES`]) for the window whose corner
     /// is pixel `(wx, wy)`, where the cells of level L - 1 `0 ..= columns` by
-    /// `0 ..= rows` are read.
+    /// `0 ..= rows` are read, the cells the polygon's box `bbox` (inside those
+    /// cells) does not meet taken as OUT ([`window_box`]).
     #[inline(always)]
-    fn new(edges: &[EdgeCode], wx: u32, wy: u32, columns: u32, rows: u32) -> Self {
+    fn new(edges: &[EdgeCode], wx: u32, wy: u32, columns: u32, rows: u32, bbox: [u32; 4]) -> Self {
         debug_assert!(edges.len() <= AT_ONCE_EDGES && columns < WINDOW_SPAN && rows < WINDOW_SPAN);
         let mut codes = Self {
             v0: [0; AT_ONCE_EDGES],
@@ -1699,7 +1720,7 @@ impl LastCells {
             dj: [0; AT_ONCE_EDGES],
             cross: [0; AT_ONCE_EDGES],
             kind: [0; AT_ONCE_EDGES],
-            outside: 0,
+            outside: !window_box(bbox, wx, wy),
             inside: !0,
             n: edges.len(),
         };
