@@ -1630,7 +1630,7 @@ fn line_sets(table: &[[[u64; 9]; 2]; 8], lo: i64, step: i64, span: i64, lines: u
     #[cfg(all(target_arch = "x86_64", target_feature = "sse4.1"))]
     {
         use std::arch::x86_64::*;
-        debug_assert!(lines % 2 == 0 && lines <= 8);
+        debug_assert!(lines.is_multiple_of(2) && lines <= 8);
         let (mut low, mut high) = (0u64, 0u64);
         // SAFETY: SSE2 and SSE4.1 operations, which the build enables (this block is
         // compiled only then); the table reads' indices are clamped to `0..=8` just
