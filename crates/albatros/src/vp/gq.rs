@@ -1087,7 +1087,7 @@ impl CellProcessors {
         let last = self.root_level;
         let level = last - 1;
         let n = poly.edges.len();
-        let codes = LastCells::new(poly.edges, cx0 * 8, cy0 * 8, columns, rows);
+        let codes = LastCells::new(poly.edges, cx0 * 8, cy0 * 8, columns, rows, poly.bbox);
         let list = 4 * self.stride * last as usize;
         // With the level in use, its own mark decides ([`Self::covered`]): an aligned
         // 8 x 8 block's marks are one word, read once for its cells.
@@ -1115,13 +1115,16 @@ impl CellProcessors {
                         continue;
                     }
                 }
-                // The split of `cell` ([`Self::split_step`], its children last-level).
-                let m =
-                    u32::from(self.memories[last as usize].children(z) | !children_in_box(cell, 2, poly.bbox) & 0xF);
+                // The split of `cell` ([`Self::split_step`], its children last-level;
+                // the children the box does not meet are OUT in `codes`, where the split
+                // takes them as masked: the same marks and cells).
+                let m = u32::from(self.memories[last as usize].children(z));
                 if m == 0xF {
                     continue;
                 }
-                let (cri, ci) = (!m & !outside & 0xF, !m & inside & 0xF);
+                // (A child the box does not meet is OUT, so not IN: the split's mask.)
+                let cri = !m & !outside & 0xF;
+                let ci = cri & inside;
                 if poly.opaque && self.masks.has(last) {
                     self.memories[last as usize].set_children(z, ci as u8);
                 }
@@ -1561,8 +1564,8 @@ const WINDOW_SPAN: u32 = 4;
 /// greatest `hi`: the line's cells `s` (`0..8` across V) wholly at lower V than the
 /// edge are those with `lo >= (s + 1) side`, `s < floor(lo / side)`, and wholly at
 /// higher V those with `hi <= s side`, `s >= ceil(hi / side)` (V relative to the
-/// window's first border across V): two shifts a line, and the cells' bits from a
-/// table ([`LINE_CELLS`]). IN and OUT by LR, as the GQ ROM's codes of each child
+/// window's first border across V): two shifts a line, and the cells' bits, in
+/// their places in the window, from a table ([`LINE_CELLS`]). IN and OUT by LR, as the GQ ROM's codes of each child
 /// ([`edge_code`]). Only the lines the start's cells reach are coded (the others'
 /// bits are never read).
 struct LastCells {
@@ -1571,6 +1574,12 @@ struct LastCells {
     v0: [i64; AT_ONCE_EDGES],
     /// Per edge, V's change over a cell along it.
     step: [i64; AT_ONCE_EDGES],
+    /// Per edge, V's change (relative to the cell) a cell along the window's
+    /// columns and a cell along its rows: a cell `(i, j)` of the window has V1 `v0 +
+    /// i di + j dj` (for a vertical TG, `di` is a cell's side across V, negated, and
+    /// `dj` the step; for a horizontal one the other way round).
+    di: [i64; AT_ONCE_EDGES],
+    dj: [i64; AT_ONCE_EDGES],
     /// Per edge, the cells it crosses (neither IN nor OUT).
     cross: [u64; AT_ONCE_EDGES],
     /// Per edge, the [`ActiveEdge`]'s kind.
@@ -1583,29 +1592,110 @@ struct LastCells {
     n: usize,
 }
 
-/// [`LastCells`]' cells of a line: at `[vertical][first][n]`, the line's first `n`
-/// cells across V (`first` 1) or its cells from the `n`-th on (`first` 0), as bits
-/// `s` (a row's, vertical TG) or `8 s` (a column's, horizontal TG), `n` in `0..=8`.
-const LINE_CELLS: [[[u64; 9]; 2]; 2] = {
-    let mut table = [[[0u64; 9]; 2]; 2];
-    let mut n = 0;
-    while n <= 8 {
-        let mut s = 0;
-        while s < 8 {
-            let (h, v) = (1u64 << (8 * s), 1u64 << s);
-            if s < n {
-                table[0][1][n] |= h;
-                table[1][1][n] |= v;
-            } else {
-                table[0][0][n] |= h;
-                table[1][0][n] |= v;
+/// [`LastCells`]' cells of a line: at `[vertical][k][first][n]`, line `k`'s first
+/// `n` cells across V (`first` 1) or its cells from the `n`-th on (`first` 0), as
+/// bits `s + 8 k` (row `k`'s, vertical TG) or `8 s + k` (column `k`'s, horizontal
+/// TG), `n` in `0..=8`: each line's sets in place, so that a line costs no shift by
+/// its place (2.3 KB).
+const LINE_CELLS: [[[[u64; 9]; 2]; 8]; 2] = {
+    let mut table = [[[[0u64; 9]; 2]; 8]; 2];
+    let mut k = 0;
+    while k < 8 {
+        let mut n = 0;
+        while n <= 8 {
+            let mut s = 0;
+            while s < 8 {
+                let (h, v) = (1u64 << (8 * s + k), 1u64 << (s + 8 * k));
+                let first = if s < n { 1 } else { 0 };
+                table[0][k][first][n] |= h;
+                table[1][k][first][n] |= v;
+                s += 1;
             }
-            s += 1;
+            n += 1;
         }
-        n += 1;
+        k += 1;
     }
     table
 };
+
+/// [`LastCells`]' sets of an edge's first `lines` lines (an even number, at most 8),
+/// `(low, high)`: the cells wholly at lower V than the edge and those wholly at
+/// higher V, by `table` (the TG's [`LINE_CELLS`]), line `k` of least V `lo + k step`
+/// and greatest that plus `span`. In SSE4.1 on x86-64 builds that enable it (the
+/// project's x86-64-v2 does): two lines a step, their four cell counts
+/// `clamp(v >> CELL_V_BITS, 0, 8)` at once; elsewhere [`line_sets_plain`] (tested
+/// against each other).
+#[inline(always)]
+fn line_sets(table: &[[[u64; 9]; 2]; 8], lo: i64, step: i64, span: i64, lines: usize) -> (u64, u64) {
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse4.1"))]
+    {
+        use std::arch::x86_64::*;
+        debug_assert!(lines.is_multiple_of(2) && lines <= 8);
+        let (mut low, mut high) = (0u64, 0u64);
+        // SAFETY: SSE2 and SSE4.1 operations, which the build enables (this block is
+        // compiled only then); the table reads' indices are clamped to `0..=8` just
+        // before, within the rows of 9.
+        #[allow(unsafe_code, reason = "SSE4.1 in a build that requires it; table indices clamped in SIMD")]
+        unsafe {
+            // Lines `k` and `k + 1`, V as `i64` in two lanes.
+            let mut v = _mm_set_epi64x(lo + step, lo);
+            let (span, two_steps) = (_mm_set1_epi64x(span), _mm_set1_epi64x(2 * step));
+            let (zero, eight) = (_mm_setzero_si128(), _mm_set1_epi32(8));
+            for pair in table.chunks_exact(2).take(lines / 2) {
+                let far = _mm_add_epi64(v, span);
+                // The high halves `floor(V / 2^32)` (exact as `i32`) of the lines' least
+                // and greatest V, then `floor(V / 2^CELL_V_BITS)` by a further shift.
+                let halves =
+                    _mm_castps_si128(_mm_shuffle_ps::<0b11_01_11_01>(_mm_castsi128_ps(v), _mm_castsi128_ps(far)));
+                const _: () = assert!(CELL_V_BITS == 32 + 2);
+                let counts = _mm_min_epi32(_mm_max_epi32(_mm_srai_epi32::<2>(halves), zero), eight);
+                let (a, b) = (_mm_cvtsi128_si64(counts) as u64, _mm_extract_epi64::<1>(counts) as u64);
+                let cell = |line: &[[u64; 9]; 2], first: usize, n: u64| *line[first].get_unchecked(n as u32 as usize);
+                low |= cell(&pair[0], 1, a) | cell(&pair[1], 1, a >> 32);
+                high |= cell(&pair[0], 0, b) | cell(&pair[1], 0, b >> 32);
+                v = _mm_add_epi64(v, two_steps);
+            }
+        }
+        (low, high)
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "sse4.1")))]
+    line_sets_plain(table, lo, step, span, lines)
+}
+
+/// [`line_sets`] a line at a time.
+#[cfg_attr(
+    all(target_arch = "x86_64", target_feature = "sse4.1"),
+    allow(dead_code, reason = "the other builds' copy, tested against the SSE4.1 one")
+)]
+#[inline(always)]
+fn line_sets_plain(table: &[[[u64; 9]; 2]; 8], mut lo: i64, step: i64, span: i64, lines: usize) -> (u64, u64) {
+    let (mut low, mut high) = (0u64, 0u64);
+    for line in table.iter().take(lines) {
+        let below = (lo >> CELL_V_BITS).clamp(0, 8) as usize;
+        let above = ((lo + span) >> CELL_V_BITS).clamp(0, 8) as usize;
+        low |= line[1][below];
+        high |= line[0][above];
+        lo += step;
+    }
+    (low, high)
+}
+
+/// The last-level cells of a window of [`LastCells`] (corner pixel `(wx, wy)`) that
+/// the box `bbox` (pixels, `[x0, x1) x [y0, y1)`, not empty, within the window)
+/// meets, as a set of the window: the columns of cells from `x0`'s to `x1 - 1`'s,
+/// the rows likewise. The split treats the others as masked ([`children_in_box`]):
+/// their codes clip to nothing; [`CellProcessors::last_cells`] takes them as OUT
+/// (so not IN), once a polygon rather than by comparisons a cell.
+#[inline(always)]
+fn window_box(bbox: [u32; 4], wx: u32, wy: u32) -> u64 {
+    let [x0, x1, y0, y1] = bbox;
+    let (i0, i1) = ((x0 - wx) / CELL_SIDE, (x1 - 1 - wx) / CELL_SIDE);
+    let (j0, j1) = ((y0 - wy) / CELL_SIDE, (y1 - 1 - wy) / CELL_SIDE);
+    debug_assert!(i0 <= i1 && i1 < 8 && j0 <= j1 && j1 < 8);
+    let columns = (0xFFu64 >> (7 - i1) & 0xFF << i0) * 0x0101_0101_0101_0101;
+    let rows = !0u64 >> (8 * (7 - j1)) & !0u64 << (8 * j0);
+    columns & rows
+}
 
 /// The four children of a window's cell of level L - 1 in a set of [`LastCells`]
 /// (`b = 2 dx + 16 dy`): child `c = dx + 2 dy` at bit `c`.
@@ -1618,42 +1708,37 @@ fn children_bits(set: u64, b: u32) -> u32 {
 impl LastCells {
     /// The codes of `edges` (at most [`AT_ONCE_EDGES`]) for the window whose corner
     /// is pixel `(wx, wy)`, where the cells of level L - 1 `0 ..= columns` by
-    /// `0 ..= rows` are read.
+    /// `0 ..= rows` are read, the cells the polygon's box `bbox` (inside those
+    /// cells) does not meet taken as OUT ([`window_box`]).
     #[inline(always)]
-    fn new(edges: &[EdgeCode], wx: u32, wy: u32, columns: u32, rows: u32) -> Self {
+    fn new(edges: &[EdgeCode], wx: u32, wy: u32, columns: u32, rows: u32, bbox: [u32; 4]) -> Self {
         debug_assert!(edges.len() <= AT_ONCE_EDGES && columns < WINDOW_SPAN && rows < WINDOW_SPAN);
         let mut codes = Self {
             v0: [0; AT_ONCE_EDGES],
             step: [0; AT_ONCE_EDGES],
+            di: [0; AT_ONCE_EDGES],
+            dj: [0; AT_ONCE_EDGES],
             cross: [0; AT_ONCE_EDGES],
             kind: [0; AT_ONCE_EDGES],
-            outside: 0,
+            outside: !window_box(bbox, wx, wy),
             inside: !0,
             n: edges.len(),
         };
         for (e, edge) in edges.iter().enumerate().take(AT_ONCE_EDGES) {
             let vertical = edge.tg() == Tg::Vertical;
-            let (t0, u0, lines, along) =
-                if vertical { (wy, wx, 2 * rows + 2, 8) } else { (wx, wy, 2 * columns + 2, 1) };
-            let cells = &LINE_CELLS[usize::from(vertical)];
+            let (t0, u0, lines) = if vertical { (wy, wx, 2 * rows + 2) } else { (wx, wy, 2 * columns + 2) };
             let step = edge.slope.0 * i64::from(CELL_SIDE);
             let v0 = edge.v_at(i64::from(t0)).0 - EdgeCoord::pixels(i64::from(u0)).0;
             let (low_end, span) = (step.min(0), step.abs() + ((1 << CELL_V_BITS) - 1));
-            let (mut low, mut high) = (0u64, 0u64);
-            let mut lo = v0 + low_end;
-            for k in 0..lines {
-                let below = (lo >> CELL_V_BITS).clamp(0, 8) as usize;
-                let above = ((lo + span) >> CELL_V_BITS).clamp(0, 8) as usize;
-                low |= cells[1][below] << (along * k);
-                high |= cells[0][above] << (along * k);
-                lo += step;
-            }
+            let (low, high) = line_sets(&LINE_CELLS[usize::from(vertical)], v0 + low_end, step, span, lines as usize);
             let (inside, outside) = if edge.lr() { (high, low) } else { (low, high) };
             codes.outside |= outside;
             codes.inside &= inside;
             codes.cross[e] = !(inside | outside);
             codes.v0[e] = v0;
             codes.step[e] = step;
+            let across = -(1i64 << CELL_V_BITS);
+            (codes.di[e], codes.dj[e]) = if vertical { (across, step) } else { (step, across) };
             codes.kind[e] = if vertical { KIND_VERTICAL } else { 0 }
                 | if edge.lr() { KIND_LR } else { 0 }
                 | if step < 0 { KIND_DOWN } else { 0 };
@@ -1668,19 +1753,25 @@ impl LastCells {
     fn list(&self, b: u32, out: &mut [ActiveEdge]) -> usize {
         let (i, j) = (i64::from(b & 7), i64::from(b >> 3));
         let out = &mut out[..self.n];
+        // The edges crossing the cell, bit `e` for edge `e` (the sets of the edges
+        // past the polygon's are empty).
+        let mut crossing = 0u32;
+        for (e, cross) in self.cross.iter().enumerate() {
+            crossing |= ((cross >> b & 1) as u32) << e;
+        }
         let mut len = 0;
-        for e in 0..self.n {
-            let vertical = self.kind[e] & KIND_VERTICAL != 0;
-            let (k, s) = if vertical { (j, i) } else { (i, j) };
-            let v1 = self.v0[e] + k * self.step[e] - (s << CELL_V_BITS);
+        while crossing != 0 {
+            let e = crossing.trailing_zeros() as usize;
+            crossing &= crossing - 1;
+            let v1 = self.v0[e] + i * self.di[e] + j * self.dj[e];
             debug_assert!(len <= e);
-            // SAFETY: `len` counts the edges before `e` kept, so `len <= e <
+            // SAFETY: `len` counts the crossing edges before `e`, so `len <= e <
             // self.n`, which is `out.len()` (sliced above).
             #[allow(unsafe_code, reason = "a packed list's index, at most the edge's, which the compiler cannot see")]
             let entry = unsafe { out.get_unchecked_mut(len) };
             *entry =
                 ActiveEdge { v1: EdgeCoord(v1), v2: EdgeCoord(v1 + self.step[e]), edge: e as u32, kind: self.kind[e] };
-            len += usize::from(self.cross[e] >> b & 1 == 1);
+            len += 1;
         }
         len
     }
@@ -2298,6 +2389,29 @@ mod tests {
             let want: [usize; 4] = std::array::from_fn(|c| ends[c] + (crossed >> c & 1) as usize);
             assert_eq!(fast_ends, want);
         }
+    }
+
+    /// [`line_sets`] (SSE4.1 in this build) gives [`line_sets_plain`]'s sets: both
+    /// TG's tables, every even number of lines, V and steps from well below the
+    /// window to well above it (every count clamped both ways), spans of a cell to
+    /// two.
+    #[test]
+    fn line_sets_are_the_plain_ones() {
+        let mut next = xorshift(0x9E37_79B9_7F4A_7C15);
+        let cell = 1i64 << CELL_V_BITS;
+        let (mut clamped_low, mut clamped_high) = (0, 0);
+        for _ in 0..200_000 {
+            let table = &LINE_CELLS[next(2) as usize];
+            let lines = 2 + 2 * next(4) as usize;
+            let step = next(2 * cell as u64 + 1) as i64 - cell;
+            let span = step.abs() + cell - 1;
+            let lo = next(32 * cell as u64) as i64 - 12 * cell;
+            let want = line_sets_plain(table, lo, step, span, lines);
+            assert_eq!(line_sets(table, lo, step, span, lines), want, "lo {lo} step {step} lines {lines}");
+            clamped_low += usize::from(lo < 0);
+            clamped_high += usize::from(lo + span > 8 * cell);
+        }
+        assert!(clamped_low > 10_000 && clamped_high > 10_000, "{clamped_low} {clamped_high}");
     }
 
     /// [`derive_start_list`] gives [`ActiveEdge::at_cell`]'s values for the cells of a
