@@ -3196,7 +3196,12 @@ mod tests {
             let (got, want) = if k % 4 == 0 {
                 (a.process::<true>(&frag, &edges, &poly, &mut ca), b.process_plain::<true>(&frag, &edges, t, &mut cb))
             } else {
-                (a.process::<false>(&frag, &edges, &poly, &mut ca), b.process_plain::<false>(&frag, &edges, t, &mut cb))
+                // Written over a slot's old contents, as the VP's queue hands it; the
+                // answer is whether anything is visible.
+                let mut out = Visible { px: 7, py: 9, sets: [0xA5A5; 16], first: 5, covered: true };
+                let any = a.process_to::<false>(&frag, &edges, &poly, &mut ca, &mut out);
+                assert_eq!(any, out.any(), "case {k}: process_to's answer");
+                (out, b.process_plain::<false>(&frag, &edges, t, &mut cb))
             };
             assert_eq!(got, want, "case {k}: mode {mode:?}, cell ({px}, {py}), box {bbox:?}, edges {edges:?}");
             assert_eq!(a.masks[cell], b.masks[cell], "case {k}");
