@@ -396,6 +396,7 @@ impl VideoProcessor {
                     sink: &mut *sink,
                     hierarchical,
                     opaque,
+                    fill_ahead: bbox[1] - bbox[0] > FILL_AHEAD_BOX || bbox[3] - bbox[2] > FILL_AHEAD_BOX,
                 };
                 if STATS {
                     gq.descend_to::<STATS>(&gp, counters, &mut fragments);
@@ -481,6 +482,9 @@ struct Fragments<'r, S, const STATS: bool> {
     /// Greene's hierarchical coverage ([`VpConfig::hierarchical`]).
     hierarchical: bool,
     opaque: bool,
+    /// The polygon's box is larger than [`FILL_AHEAD_BOX`]: its fill asks for the
+    /// memories ahead.
+    fill_ahead: bool,
 }
 
 impl<S: Sink, const STATS: bool> gq::FragmentSink for Fragments<'_, S, STATS> {
@@ -491,12 +495,14 @@ impl<S: Sink, const STATS: bool> gq::FragmentSink for Fragments<'_, S, STATS> {
             // four siblings at once) need no look-ups, and an opaque
             // polygon's are marked covered by the GQ
             // ([`CellProcessors::descend_filling`]).
-            // The memories under the cell of level L - 1 some cells further on in
-            // Z order, where a large polygon's fill goes next (a hint).
-            let (x, y) = unmorton(gq::morton(frag.px / 8, frag.py / 8) + FILL_AHEAD);
-            let ahead = [x * 8, x * 8 + 8, y * 8, y * 8 + 8];
-            self.spp.prefetch_box(ahead);
-            self.sink.ahead(ahead);
+            if self.fill_ahead {
+                // The memories under the cell of level L - 1 some cells further on
+                // in Z order, where a large polygon's fill goes next (a hint).
+                let (x, y) = unmorton(gq::morton(frag.px / 8, frag.py / 8) + FILL_AHEAD);
+                let ahead = [x * 8, x * 8 + 8, y * 8, y * 8 + 8];
+                self.spp.prefetch_box(ahead);
+                self.sink.ahead(ahead);
+            }
             let mut cells = frag.cells;
             while cells != 0 {
                 let c = cells.trailing_zeros();
@@ -556,6 +562,12 @@ trait Sink {
 
 /// How many cells of level L - 1 ahead in Z order a fill asks for the memories of.
 const FILL_AHEAD: usize = 4;
+
+/// The widest or highest box (pixels) whose fill does not ask for the memories
+/// ahead ([`FILL_AHEAD`]): the look-ahead asks for a box of up to
+/// [`spp::PREFETCH_BOX_CELLS`] cells a side before the polygon starts (terrain's
+/// inside cells, ~9 M instructions of asking, had their memory already).
+const FILL_AHEAD_BOX: u32 = spp::PREFETCH_BOX_CELLS * spp::CELL_SIDE;
 
 /// The cell `(x, y)` of Z-order index `z` ([`gq::morton`]'s inverse).
 #[inline(always)]
