@@ -495,11 +495,12 @@ impl<S: Sink, const STATS: bool> gq::FragmentSink for Fragments<'_, S, STATS> {
             // four siblings at once) need no look-ups, and an opaque
             // polygon's are marked covered by the GQ
             // ([`CellProcessors::descend_filling`]).
-            if self.fill_ahead {
-                // The memories under the cell of level L - 1 some cells further on
-                // in Z order, where a large polygon's fill goes next (a hint).
-                let (x, y) = unmorton(gq::morton(frag.px / 8, frag.py / 8) + FILL_AHEAD);
-                let ahead = [x * 8, x * 8 + 8, y * 8, y * 8 + 8];
+            if self.fill_ahead && (frag.px | frag.py) & 8 == 0 {
+                // The memories under the cell of level L - 2 next in Z order, where
+                // a large polygon's fill goes next (a hint), asked for at the
+                // first cell of level L - 1 of each.
+                let (x, y) = unmorton(gq::morton(frag.px / 16, frag.py / 16) + 1);
+                let ahead = [x * 16, x * 16 + 16, y * 16, y * 16 + 16];
                 self.spp.prefetch_box(ahead);
                 self.sink.ahead(ahead);
             }
@@ -560,11 +561,11 @@ trait Sink {
     }
 }
 
-/// How many cells of level L - 1 ahead in Z order a fill asks for the memories of.
-const FILL_AHEAD: usize = 4;
-
 /// The widest or highest box (pixels) whose fill does not ask for the memories
-/// ahead ([`FILL_AHEAD`]): the look-ahead asks for a box of up to
+/// ahead (the next cell of level L - 2 in Z order, at the first cell of level L - 1
+/// of each: one cell of level L - 1 ahead in Z order, or two, or eight, was no
+/// better on `rhombus` and `default`, and asking at every cell cost ~100
+/// instructions a cell): the look-ahead asks for a box of up to
 /// [`spp::PREFETCH_BOX_CELLS`] cells a side before the polygon starts (terrain's
 /// inside cells, ~9 M instructions of asking, had their memory already).
 const FILL_AHEAD_BOX: u32 = spp::PREFETCH_BOX_CELLS * spp::CELL_SIDE;
