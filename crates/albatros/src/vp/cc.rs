@@ -1233,4 +1233,93 @@ mod tests {
             }
         }
     }
+
+    /// A run of cells given to [`ColorComputers::shade_accumulate`] at once (with
+    /// AVX2, the loop over them inside the colour computers' function) writes the
+    /// VB as the same cells given one at a time: cells with no visible pixel in the
+    /// run (skipped, not ending it), cells over one another (later fragments over
+    /// the run's own earlier words), textured and untextured polygons, fog and none.
+    #[test]
+    fn a_run_of_cells_is_its_cells_one_by_one() {
+        let maps = TextureMaps::new(vec![builtin("grass").unwrap()]);
+        let (w, h_px) = (64, 48);
+        let [mut run, mut one] = [0, 1].map(|_| VideoBuffer::new(w, h_px, crate::vp::vb::VbMode::default()));
+        let mut h = 0x2545_F491u32;
+        let mut next = || {
+            h ^= h << 13;
+            h ^= h >> 17;
+            h ^= h << 5;
+            h as f32 / u32::MAX as f32
+        };
+        for round in 0..400 {
+            let mut lin = |scale: f32| FracLin { a: (next() - 0.5) * scale, b: (next() - 0.5) * scale, c: next() };
+            let (intensity, u, v) = (lin(1e-2), lin(1e-1), lin(1e-1));
+            let inv_z = FracLin { a: (next() - 0.5) * 1e-4, b: (next() - 0.5) * 1e-4, c: next() * 0.1 + 1e-4 };
+            let texture = (round % 2 == 0).then(|| PolyTexture {
+                map: 0,
+                u,
+                v,
+                par: next() * 4.0,
+                color1: Vec3::new(next(), next(), next()),
+                color2: Vec3::new(next(), next(), next()),
+            });
+            let poly = FramePolygon {
+                vertices: 0..0,
+                kind: PrimitiveKind::Face,
+                material: 0,
+                source: (0, 0),
+                color: Vec3::new(next(), next(), next()),
+                inv_z,
+                intensity,
+                texture: if texture.is_some() { 0 } else { FramePolygon::NO_TEXTURE },
+                transparency: 0,
+            };
+            let set_ups = texture.as_slice();
+            let mut cc = ColorComputers::with(
+                Vec3::new(next(), next(), next()),
+                if round % 3 == 0 { 0.0 } else { next() * 1e-2 },
+                FOOTPRINT_FACTOR * 1e-3,
+                &maps,
+                set_ups,
+            );
+            // 1 to 12 cells in a 4 x 3 block of cells, some twice, some empty.
+            let len = 1 + (next() * 11.0) as usize;
+            let cells: Vec<Visible> = (0..len)
+                .map(|k| {
+                    let cell = (next() * 12.0) as u32 % 12;
+                    let (px, py) = (4 * (cell % 4) + 8 * (round % 4), 4 * (cell / 4) + 4 * (round % 3));
+                    let visible = match k % 5 {
+                        3 => 0,
+                        4 => 0xFFFF,
+                        _ => (next() * 65535.0) as u16,
+                    };
+                    let mut sets = [0u16; 16];
+                    for (i, s) in sets.iter_mut().enumerate() {
+                        if visible >> i & 1 == 1 {
+                            *s = if k % 2 == 0 { crate::vp::spp::FULL } else { 1 + (next() * 65534.0) as u16 };
+                        }
+                    }
+                    Visible { px, py, sets, first: (next() * 65535.0) as u16 & visible, covered: false }
+                })
+                .collect();
+            let (mut colors, mut counters) = (CellColors::default(), Counters::new(9));
+            let fused = run.fused_f1();
+            cc.shade_accumulate::<false>(&poly, &cells, &mut colors, &mut counters, &mut run, fused);
+            for vis in &cells {
+                let fused = one.fused_f1();
+                cc.shade_accumulate::<false>(
+                    &poly,
+                    std::slice::from_ref(vis),
+                    &mut colors,
+                    &mut counters,
+                    &mut one,
+                    fused,
+                );
+            }
+            for (x, y) in (0..w).flat_map(|x| (0..h_px).map(move |y| (x, y))) {
+                let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+                assert_eq!(bits(run.linear(x, y)), bits(one.linear(x, y)), "round {round}, pixel ({x}, {y})");
+            }
+        }
+    }
 }
