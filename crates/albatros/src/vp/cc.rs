@@ -606,7 +606,11 @@ impl<'a> PolyAvx2<'a> {
     /// `f1` in order; [`Self::shade_avx2`] one): the loop over them is inside the
     /// function, so a cell costs no call (six saved registers, a frame, the F1
     /// registers' pointers read again; colour + VB terrain 151.0 → 147.0 M,
-    /// default 99.1 → 98.0 M, session 21).
+    /// default 99.1 → 98.0 M, city 64.6 → 60.9 M, session 21). `many`'s runs are
+    /// mostly one cell, and a run now pays the polygon's registers hoisted out of
+    /// the loop and spilled (~60 instructions): its colour + VB 358.0 → 369.3 M at
+    /// 960 x 540 (raster −4.0 M by the layout). A copy for one-cell runs (a second
+    /// const parameter) made F1's copies calls again: terrain 156.6 M, dropped.
     #[target_feature(enable = "avx2")]
     fn shade_textured_avx2<const TEXTURED: bool>(
         &self,
