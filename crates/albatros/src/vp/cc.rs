@@ -293,16 +293,13 @@ impl<'a> ColorComputers<'a> {
                 // AVX2 is not inlined into this one, so there it was a call and a
                 // jump a cell: terrain ~3 instructions a cell), and with the set-up
                 // and F1's registers once for the polygon's cells (per cell: terrain
-                // ~18 instructions a cell, 5.5 M; session 20).
+                // ~18 instructions a cell, 5.5 M; session 20); the run's cells in
+                // one call (session 21).
                 let prepared = self.prepared_avx2(poly);
                 if prepared.texture.is_some() {
-                    for vis in cells {
-                        prepared.shade_textured_avx2::<true>(vis, out, Some(&mut f1));
-                    }
+                    prepared.shade_textured_avx2::<true>(cells, out, Some(&mut f1));
                 } else {
-                    for vis in cells {
-                        prepared.shade_textured_avx2::<false>(vis, out, Some(&mut f1));
-                    }
+                    prepared.shade_textured_avx2::<false>(cells, out, Some(&mut f1));
                 }
             };
             if STATS {
@@ -591,9 +588,9 @@ impl<'a> PolyAvx2<'a> {
     #[inline]
     fn shade_avx2(&self, vis: &Visible, out: &mut CellColors, f1: Option<&mut F1Avx2>) {
         if self.texture.is_some() {
-            self.shade_textured_avx2::<true>(vis, out, f1);
+            self.shade_textured_avx2::<true>(std::slice::from_ref(vis), out, f1);
         } else {
-            self.shade_textured_avx2::<false>(vis, out, f1);
+            self.shade_textured_avx2::<false>(std::slice::from_ref(vis), out, f1);
         }
     }
 
@@ -604,28 +601,45 @@ impl<'a> PolyAvx2<'a> {
     /// the other's register allocation. (In one function, the texture unit's
     /// shortcut for the last level, [`MapAvx2::top_avx2`], had cost terrain's
     /// untextured cells ~2 instructions a cell of spills.)
+    ///
+    /// It takes a run of cells (`cells`, of this polygon, coloured and handed to
+    /// `f1` in order; [`Self::shade_avx2`] one): the loop over them is inside the
+    /// function, so a cell costs no call (six saved registers, a frame, the F1
+    /// registers' pointers read again; colour + VB terrain 151.0 → 147.0 M,
+    /// default 99.1 → 98.0 M, city 64.6 → 60.9 M, session 21). `many`'s runs are
+    /// mostly one cell, and a run now pays the polygon's registers hoisted out of
+    /// the loop and spilled (~60 instructions): its colour + VB 358.0 → 369.3 M at
+    /// 960 x 540 (raster −4.0 M by the layout). A copy for one-cell runs (a second
+    /// const parameter) made F1's copies calls again: terrain 156.6 M, dropped.
     #[target_feature(enable = "avx2")]
-    fn shade_textured_avx2<const TEXTURED: bool>(&self, vis: &Visible, out: &mut CellColors, f1: Option<&mut F1Avx2>) {
+    fn shade_textured_avx2<const TEXTURED: bool>(
+        &self,
+        cells: &[Visible],
+        out: &mut CellColors,
+        mut f1: Option<&mut F1Avx2>,
+    ) {
         const N: usize = AVX2_LANES;
-        let visible = visible_avx2(&vis.sets);
-        if visible == 0 {
-            return;
-        }
-        let q = self.at_q(vis);
-        if visible & 0xFF != 0 && visible >> N != 0 {
-            for (half, c) in self.cell::<TEXTURED>(&q).iter().enumerate() {
-                for (out, c) in out.rgb.iter_mut().zip(c) {
-                    store_lanes(*c, (&mut out[N * half..N * (half + 1)]).try_into().expect("8 lanes"));
+        for vis in cells {
+            let visible = visible_avx2(&vis.sets);
+            if visible == 0 {
+                continue;
+            }
+            let q = self.at_q(vis);
+            if visible & 0xFF != 0 && visible >> N != 0 {
+                for (half, c) in self.cell::<TEXTURED>(&q).iter().enumerate() {
+                    for (out, c) in out.rgb.iter_mut().zip(c) {
+                        store_lanes(*c, (&mut out[N * half..N * (half + 1)]).try_into().expect("8 lanes"));
+                    }
+                }
+            } else {
+                let half = usize::from(visible & 0xFF == 0);
+                for (out, c) in out.rgb.iter_mut().zip(self.group::<TEXTURED>(&q, half)) {
+                    store_lanes(c, (&mut out[N * half..N * (half + 1)]).try_into().expect("8 lanes"));
                 }
             }
-        } else {
-            let half = usize::from(visible & 0xFF == 0);
-            for (out, c) in out.rgb.iter_mut().zip(self.group::<TEXTURED>(&q, half)) {
-                store_lanes(c, (&mut out[N * half..N * (half + 1)]).try_into().expect("8 lanes"));
+            if let Some(f1) = f1.as_deref_mut() {
+                f1.accumulate::<TEXTURED>(vis, out);
             }
-        }
-        if let Some(f1) = f1 {
-            f1.accumulate::<TEXTURED>(vis, out);
         }
     }
 
@@ -1220,6 +1234,95 @@ mod tests {
                 let (x, y) = (px + i % 4, py + i / 4);
                 let bits = |v: Vec3| v.to_array().map(f32::to_bits);
                 assert_eq!(bits(fused.linear(x, y)), bits(apart.linear(x, y)), "round {round}, pixel {i}: F1");
+            }
+        }
+    }
+
+    /// A run of cells given to [`ColorComputers::shade_accumulate`] at once (with
+    /// AVX2, the loop over them inside the colour computers' function) writes the
+    /// VB as the same cells given one at a time: cells with no visible pixel in the
+    /// run (skipped, not ending it), cells over one another (later fragments over
+    /// the run's own earlier words), textured and untextured polygons, fog and none.
+    #[test]
+    fn a_run_of_cells_is_its_cells_one_by_one() {
+        let maps = TextureMaps::new(vec![builtin("grass").unwrap()]);
+        let (w, h_px) = (64, 48);
+        let [mut run, mut one] = [0, 1].map(|_| VideoBuffer::new(w, h_px, crate::vp::vb::VbMode::default()));
+        let mut h = 0x2545_F491u32;
+        let mut next = || {
+            h ^= h << 13;
+            h ^= h >> 17;
+            h ^= h << 5;
+            h as f32 / u32::MAX as f32
+        };
+        for round in 0..400 {
+            let mut lin = |scale: f32| FracLin { a: (next() - 0.5) * scale, b: (next() - 0.5) * scale, c: next() };
+            let (intensity, u, v) = (lin(1e-2), lin(1e-1), lin(1e-1));
+            let inv_z = FracLin { a: (next() - 0.5) * 1e-4, b: (next() - 0.5) * 1e-4, c: next() * 0.1 + 1e-4 };
+            let texture = (round % 2 == 0).then(|| PolyTexture {
+                map: 0,
+                u,
+                v,
+                par: next() * 4.0,
+                color1: Vec3::new(next(), next(), next()),
+                color2: Vec3::new(next(), next(), next()),
+            });
+            let poly = FramePolygon {
+                vertices: 0..0,
+                kind: PrimitiveKind::Face,
+                material: 0,
+                source: (0, 0),
+                color: Vec3::new(next(), next(), next()),
+                inv_z,
+                intensity,
+                texture: if texture.is_some() { 0 } else { FramePolygon::NO_TEXTURE },
+                transparency: 0,
+            };
+            let set_ups = texture.as_slice();
+            let mut cc = ColorComputers::with(
+                Vec3::new(next(), next(), next()),
+                if round % 3 == 0 { 0.0 } else { next() * 1e-2 },
+                FOOTPRINT_FACTOR * 1e-3,
+                &maps,
+                set_ups,
+            );
+            // 1 to 12 cells in a 4 x 3 block of cells, some twice, some empty.
+            let len = 1 + (next() * 11.0) as usize;
+            let cells: Vec<Visible> = (0..len)
+                .map(|k| {
+                    let cell = (next() * 12.0) as u32 % 12;
+                    let (px, py) = (4 * (cell % 4) + 8 * (round % 4), 4 * (cell / 4) + 4 * (round % 3));
+                    let visible = match k % 5 {
+                        3 => 0,
+                        4 => 0xFFFF,
+                        _ => (next() * 65535.0) as u16,
+                    };
+                    let mut sets = [0u16; 16];
+                    for (i, s) in sets.iter_mut().enumerate() {
+                        if visible >> i & 1 == 1 {
+                            *s = if k % 2 == 0 { crate::vp::spp::FULL } else { 1 + (next() * 65534.0) as u16 };
+                        }
+                    }
+                    Visible { px, py, sets, first: (next() * 65535.0) as u16 & visible, covered: false }
+                })
+                .collect();
+            let (mut colors, mut counters) = (CellColors::default(), Counters::new(9));
+            let fused = run.fused_f1();
+            cc.shade_accumulate::<false>(&poly, &cells, &mut colors, &mut counters, &mut run, fused);
+            for vis in &cells {
+                let fused = one.fused_f1();
+                cc.shade_accumulate::<false>(
+                    &poly,
+                    std::slice::from_ref(vis),
+                    &mut colors,
+                    &mut counters,
+                    &mut one,
+                    fused,
+                );
+            }
+            for (x, y) in (0..w).flat_map(|x| (0..h_px).map(move |y| (x, y))) {
+                let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+                assert_eq!(bits(run.linear(x, y)), bits(one.linear(x, y)), "round {round}, pixel ({x}, {y})");
             }
         }
     }
