@@ -968,6 +968,60 @@ mod tests {
     use crate::frame::{FracLin, PrimitiveKind};
     use crate::vp::texture::builtin;
 
+    /// Numbers in `0..=1` from a xorshift generator started at `seed`.
+    fn unit_floats(seed: u32) -> impl FnMut() -> f32 {
+        let mut h = seed;
+        move || {
+            h ^= h << 13;
+            h ^= h >> 17;
+            h ^= h << 5;
+            h as f32 / u32::MAX as f32
+        }
+    }
+
+    /// Colour computers with a fog colour from `next` and, unless `clear`, a visibility
+    /// `1 / (next() scale)` (the footprint scale of a 1e-3 pixel angle).
+    fn random_computers<'a>(
+        next: &mut impl FnMut() -> f32,
+        clear: bool,
+        scale: f32,
+        maps: &'a TextureMaps,
+        set_ups: &'a [PolyTexture],
+    ) -> ColorComputers<'a> {
+        let fog = Vec3::new(next(), next(), next());
+        let inv_visibility = if clear { 0.0 } else { next() * scale };
+        ColorComputers::with(fog, inv_visibility, FOOTPRINT_FACTOR * 1e-3, maps, set_ups)
+    }
+
+    /// A texture set-up of map `map` with the functions `u` and `v`, its `PAR` and
+    /// colours drawn from `next`.
+    fn random_texture(map: u32, u: FracLin, v: FracLin, next: &mut impl FnMut() -> f32) -> PolyTexture {
+        PolyTexture {
+            map,
+            u,
+            v,
+            par: next() * 4.0,
+            color1: Vec3::new(next(), next(), next()),
+            color2: Vec3::new(next(), next(), next()),
+        }
+    }
+
+    /// A face of colour `color` with the functions `inv_z` and `intensity`, textured
+    /// by the side table's entry 0 when `textured`.
+    fn face_polygon(color: Vec3, inv_z: FracLin, intensity: FracLin, textured: bool) -> FramePolygon {
+        FramePolygon {
+            vertices: 0..0,
+            kind: PrimitiveKind::Face,
+            material: 0,
+            source: (0, 0),
+            color,
+            inv_z,
+            intensity,
+            texture: if textured { 0 } else { FramePolygon::NO_TEXTURE },
+            transparency: 0,
+        }
+    }
+
     /// The colour of pixel `(x, y)` by P2's definitions written out plainly, pixel
     /// by pixel: the reference for [`ColorComputers::shade`].
     fn plain_pixel(cc: &ColorComputers, poly: &FramePolygon, px: u32, py: u32, i: usize) -> Vec3 {
@@ -995,13 +1049,7 @@ mod tests {
     #[test]
     fn flat_color_is_every_pixels_colour() {
         let maps = TextureMaps::new(vec![builtin("grass").unwrap()]);
-        let mut h = 0x2545_F491u32;
-        let mut next = || {
-            h ^= h << 13;
-            h ^= h >> 17;
-            h ^= h << 5;
-            h as f32 / u32::MAX as f32
-        };
+        let mut next = unit_floats(0x2545_F491);
         for round in 0..2000 {
             let zero = |k: u32| if k.is_multiple_of(2) { 0.0 } else { -0.0 };
             let still = |c: f32| FracLin { a: zero(round), b: zero(round / 2), c };
@@ -1018,25 +1066,9 @@ mod tests {
                 color1: Vec3::ONE,
                 color2: Vec3::ZERO,
             });
-            let poly = FramePolygon {
-                vertices: 0..0,
-                kind: PrimitiveKind::Face,
-                material: 0,
-                source: (0, 0),
-                color: Vec3::new(next(), next(), next()),
-                inv_z,
-                intensity,
-                texture: if texture.is_some() { 0 } else { FramePolygon::NO_TEXTURE },
-                transparency: 0,
-            };
+            let poly = face_polygon(Vec3::new(next(), next(), next()), inv_z, intensity, texture.is_some());
             let set_ups = texture.as_slice();
-            let mut cc = ColorComputers::with(
-                Vec3::new(next(), next(), next()),
-                if round % 3 == 0 { 0.0 } else { next() * 1e-2 },
-                FOOTPRINT_FACTOR * 1e-3,
-                &maps,
-                set_ups,
-            );
+            let mut cc = random_computers(&mut next, round % 3 == 0, 1e-2, &maps, set_ups);
             let flat = cc.flat_color(&poly);
             let drawn = texture.is_some_and(|t| t.map == 0);
             assert_eq!(flat.is_some(), !moving && !drawn, "round {round}");
@@ -1104,13 +1136,7 @@ mod tests {
         // CC and F1 in one function), the other by `shade` and `accumulate`.
         let (w, h_px) = (1924, 1084);
         let [mut fused, mut apart] = [0, 1].map(|_| VideoBuffer::new(w, h_px, crate::vp::vb::VbMode::default()));
-        let mut h = 0x9E37_79B9u32;
-        let mut next = || {
-            h ^= h << 13;
-            h ^= h >> 17;
-            h ^= h << 5;
-            h as f32 / u32::MAX as f32
-        };
+        let mut next = unit_floats(0x9E37_79B9);
         for round in 0..3000 {
             let mut lin = |scale: f32| FracLin { a: (next() - 0.5) * scale, b: (next() - 0.5) * scale, c: next() };
             // Odd faces now and then: texture coordinates out of any range
@@ -1125,34 +1151,11 @@ mod tests {
                 9 => FracLin { a: 0.0, b: 0.0, c: -next() },
                 _ => FracLin { a: (next() - 0.5) * 1e-4, b: (next() - 0.5) * 1e-4, c: next() * 0.1 + 1e-4 },
             };
-            let texture = (round % 4 != 0).then(|| PolyTexture {
-                // Map 2 is missing: the face keeps its colour.
-                map: round % 3,
-                u,
-                v,
-                par: next() * 4.0,
-                color1: Vec3::new(next(), next(), next()),
-                color2: Vec3::new(next(), next(), next()),
-            });
-            let poly = FramePolygon {
-                vertices: 0..0,
-                kind: PrimitiveKind::Face,
-                material: 0,
-                source: (0, 0),
-                color: Vec3::new(next(), next(), next()),
-                inv_z,
-                intensity,
-                texture: if texture.is_some() { 0 } else { FramePolygon::NO_TEXTURE },
-                transparency: 0,
-            };
+            // Map 2 is missing: the face keeps its colour.
+            let texture = (round % 4 != 0).then(|| random_texture(round % 3, u, v, &mut next));
+            let poly = face_polygon(Vec3::new(next(), next(), next()), inv_z, intensity, texture.is_some());
             let set_ups = texture.as_slice();
-            let mut cc = ColorComputers::with(
-                Vec3::new(next(), next(), next()),
-                if round % 5 == 0 { 0.0 } else { next() * 1e-3 },
-                FOOTPRINT_FACTOR * 1e-3,
-                &maps,
-                set_ups,
-            );
+            let mut cc = random_computers(&mut next, round % 5 == 0, 1e-3, &maps, set_ups);
             // Any set of visible pixels, from one to all sixteen; a third of them
             // most of the cell (coloured as whole rows), all of it, or all but one.
             let mut sets = [0u16; 16];
@@ -1248,44 +1251,15 @@ mod tests {
         let maps = TextureMaps::new(vec![builtin("grass").unwrap()]);
         let (w, h_px) = (64, 48);
         let [mut run, mut one] = [0, 1].map(|_| VideoBuffer::new(w, h_px, crate::vp::vb::VbMode::default()));
-        let mut h = 0x2545_F491u32;
-        let mut next = || {
-            h ^= h << 13;
-            h ^= h >> 17;
-            h ^= h << 5;
-            h as f32 / u32::MAX as f32
-        };
+        let mut next = unit_floats(0x2545_F491);
         for round in 0..400 {
             let mut lin = |scale: f32| FracLin { a: (next() - 0.5) * scale, b: (next() - 0.5) * scale, c: next() };
             let (intensity, u, v) = (lin(1e-2), lin(1e-1), lin(1e-1));
             let inv_z = FracLin { a: (next() - 0.5) * 1e-4, b: (next() - 0.5) * 1e-4, c: next() * 0.1 + 1e-4 };
-            let texture = (round % 2 == 0).then(|| PolyTexture {
-                map: 0,
-                u,
-                v,
-                par: next() * 4.0,
-                color1: Vec3::new(next(), next(), next()),
-                color2: Vec3::new(next(), next(), next()),
-            });
-            let poly = FramePolygon {
-                vertices: 0..0,
-                kind: PrimitiveKind::Face,
-                material: 0,
-                source: (0, 0),
-                color: Vec3::new(next(), next(), next()),
-                inv_z,
-                intensity,
-                texture: if texture.is_some() { 0 } else { FramePolygon::NO_TEXTURE },
-                transparency: 0,
-            };
+            let texture = (round % 2 == 0).then(|| random_texture(0, u, v, &mut next));
+            let poly = face_polygon(Vec3::new(next(), next(), next()), inv_z, intensity, texture.is_some());
             let set_ups = texture.as_slice();
-            let mut cc = ColorComputers::with(
-                Vec3::new(next(), next(), next()),
-                if round % 3 == 0 { 0.0 } else { next() * 1e-2 },
-                FOOTPRINT_FACTOR * 1e-3,
-                &maps,
-                set_ups,
-            );
+            let mut cc = random_computers(&mut next, round % 3 == 0, 1e-2, &maps, set_ups);
             // 1 to 12 cells in a 4 x 3 block of cells, some twice, some empty.
             let len = 1 + (next() * 11.0) as usize;
             let cells: Vec<Visible> = (0..len)
