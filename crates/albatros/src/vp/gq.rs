@@ -563,6 +563,16 @@ pub struct Fragment<'a> {
     pub bbox: [u32; 4],
 }
 
+impl Fragment<'_> {
+    /// The fragment of last-level child `c` (`dx + 2 dy`) of cell `cell` of level
+    /// L - 1, wholly inside its polygon of box `bbox`: no edge, in the descent's order
+    /// (the split's and [`LastCells`]' one cell at a time).
+    #[inline(always)]
+    fn inside_child(cell: Cell, c: u32, bbox: [u32; 4]) -> Self {
+        Fragment { px: cell.x * 8, py: cell.y * 8, active: &[], cells: 1 << c, bbox }
+    }
+}
+
 /// A [`Fragment::bbox`] that clips nothing: for fragments with no edge (cells wholly
 /// inside their polygon, so inside its box) and for tests.
 pub const NO_BOX: [u32; 4] = [0, u32::MAX, 0, u32::MAX];
@@ -1137,13 +1147,7 @@ impl CellProcessors {
                             self.inside[last as usize].push(4 * z + c as usize);
                             self.queued |= 1 << last;
                         }
-                        spp.fragment(Fragment {
-                            px: cell.x * 8,
-                            py: cell.y * 8,
-                            active: &[],
-                            cells: 1 << c,
-                            bbox: poly.bbox,
-                        });
+                        spp.fragment(Fragment::inside_child(cell, c, poly.bbox));
                         continue;
                     }
                     let len = codes.list(b + (c & 1) + 8 * (c >> 1), &mut self.lists[list..list + n]);
@@ -1276,13 +1280,7 @@ impl CellProcessors {
                 }
                 if LAST || child_level == self.root_level {
                     // In the descent's order, cell by cell (this cell of the parent).
-                    spp.fragment(Fragment {
-                        px: cell.x * 8,
-                        py: cell.y * 8,
-                        active: &[],
-                        cells: 1 << c,
-                        bbox: poly.bbox,
-                    });
+                    spp.fragment(Fragment::inside_child(cell, c, poly.bbox));
                 } else {
                     self.fill(child_cell, 4 * z + c as usize, poly.opaque, spp);
                 }
