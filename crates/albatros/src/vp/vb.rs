@@ -1822,7 +1822,13 @@ const SOFTPLUS_LANE_MAX: i32 = SOFTPLUS_PADDED as i32 - 2;
 /// registers handed to F1 rather than loaded again from [`CellColors`] (three
 /// loads a half saved, but more spills: default +0.1 M); the store's bounds
 /// (`Q1`, `floor - 1`) as aligned lanes in memory rather than broadcast per half
-/// (default +0.1 M, terrain −0.3 M).
+/// (default +0.1 M, terrain −0.3 M). Session 22 (Zen 3, one thread pinned), tried
+/// and dropped: `ln(1 + e^x)` by cubics in lanes (`f32`, 8 segments of 128 read by
+/// `vpermps`, exact at every index) instead of the gathers: 6.1 against 9.3 ns per
+/// 16 lanes in a loop of its own, yet no faster in the frame (terrain's fastest of
+/// 40 frames 71.9 against 72.1 ms, 3 of 8 pairs; default 30.3 against 30.1), the
+/// gathers' wait hidden among the cell's other work; and the partial rows' masked
+/// stores as a load, blend and store (terrain the same within the host's noise).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
