@@ -539,7 +539,7 @@ struct Shared<'a> {
     sun_world: DVec3,
     /// The view volume, for rejecting the static tree's subtrees.
     frustum: Frustum,
-    /// Whether subtrees outside it are passed over ([`Shared::culls`]).
+    /// Whether subtrees outside it are passed over ([`Shared::culls_within`]).
     cull: bool,
     /// Whether triangles take [`FrameBuilder::face`]'s path for triangles (the
     /// tests compare it with the general one).
@@ -973,18 +973,12 @@ impl<'a> Shared<'a> {
 
     /// Whether the subtree of node `n` of the static tree is passed over whole
     /// ([`Visit::Culled`]): large enough, wholly outside the view volume, and with
-    /// no guest attached inside (a guest's place would be lost). The walk asks
-    /// [`Shared::culls_within`], the same answer.
-    #[cfg(test)]
-    fn culls(&self, n: u32) -> bool {
-        self.culls_within(n, &Cell::new((0, 0)))
-    }
-
-    /// [`Shared::culls`] in a walk that keeps in `inside` the nodes of the last
-    /// subtree found wholly inside the view volume (`start..end` of the tree's
-    /// depth-first numbering, a subtree's nodes numbered together): none of them is
-    /// culled ([`Frustum::place`]), so none is tested. The walk enters a subtree's
-    /// nodes one after another, so that one subtree remembered is enough.
+    /// no guest attached inside (a guest's place would be lost). A walk keeps in
+    /// `inside` the nodes of the last subtree found wholly inside the view volume
+    /// (`start..end` of the tree's depth-first numbering, a subtree's nodes
+    /// numbered together; empty at the walk's start): none of them is culled
+    /// ([`Frustum::place`]), so none is tested. The walk enters a subtree's nodes
+    /// one after another, so that one subtree remembered is enough.
     ///
     /// Why: on `many` (a million triangles in view, none culled) the test of every
     /// node of at least [`CULL_MIN_FACES`] faces was ~12 M instructions a frame,
@@ -1210,7 +1204,7 @@ impl FrameBuilder<'_> {
         self.face_body::<AVX2>(&bsp.records[i as usize], bsp, &f.view.world_to_eye, &f.view.position, &f.sun_world);
     }
 
-    /// The faces of a subtree wholly outside the view volume ([`Shared::culls`]):
+    /// The faces of a subtree wholly outside the view volume ([`Shared::culls_within`]):
     /// counted as [`FrameBuilder::face`] counts them (every one that is not
     /// back-facing would have every vertex beyond the same border), without their
     /// transforms.
@@ -1992,7 +1986,7 @@ mod tests {
                     seen[2] += c.window_clipped as usize;
                     seen[3] += c.near_clipped as usize;
                     let shared = Shared::new(&db, View::new(&eye, screen), config);
-                    culled_some |= (0..db.bsp.nodes.len() as u32).any(|n| shared.culls(n));
+                    culled_some |= (0..db.bsp.nodes.len() as u32).any(|n| shared.culls_within(n, &Cell::new((0, 0))));
                 }
             }
         }

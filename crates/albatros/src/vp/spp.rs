@@ -914,7 +914,7 @@ impl SubpixelProcessors {
 
     /// The SPPs' set-up for a polygon with box `bbox` (as [`super::bbox`] gives it, the
     /// box of its fragments: [`Fragment::bbox`]) and transparency code `t`, for
-    /// [`Self::process`] and [`Self::inside`] of its fragments.
+    /// [`Self::process`] and [`Self::inside_to`] of its fragments.
     #[inline]
     pub fn polygon(&self, bbox: [u32; 4], t: u8) -> SppPolygon {
         let [x0, x1, y0, y1] = bbox;
@@ -1334,7 +1334,7 @@ impl SubpixelProcessors {
         out.any()
     }
 
-    /// [`Self::inside`] by its definition: [`Self::apply`] of an all-ones code.
+    /// [`Self::inside_to`] by its definition: [`Self::apply`] of an all-ones code.
     #[inline(never)]
     fn inside_plain(&mut self, px: u32, py: u32, t: u8) -> Visible {
         self.apply::<false>(px, py, &[FULL; 16], t).0
@@ -3226,7 +3226,7 @@ mod tests {
         }
     }
 
-    /// [`SubpixelProcessors::inside`] is [`SubpixelProcessors::process`] of a
+    /// [`SubpixelProcessors::inside_to`] is [`SubpixelProcessors::process`] of a
     /// fragment with no active edge: the same visible sets, first writes, cover and
     /// mask memory, over random masks (empty, full, pre-masked pixels, anything),
     /// every transparency code, cells at the screen's ragged edges.
