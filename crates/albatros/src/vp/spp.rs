@@ -1314,6 +1314,54 @@ impl SubpixelProcessors {
         Ok([_mm_movemask_epi8(by_column) as u16, _mm_movemask_epi8(bytes) as u16])
     }
 
+    /// Whether every pixel of a small polygon's box is covered already (all 16
+    /// subpixels set in the mask memory), with counting off: then none of its
+    /// fragments can have a visible subpixel (no subpixel outside its box is the
+    /// polygon's, [`box_pixels`]), none makes a first write or changes the mask, and
+    /// the VP passes the polygon over before its descent, where each of its fragments
+    /// would have been found hidden one by one ([`Self::hidden_avx2`]). Only for the
+    /// polygons of [`Route::Avx2Small`] (`false` for the others): a large box is
+    /// rarely all covered, and a wholly covered cell never reaches the SPPs.
+    #[inline(always)]
+    pub fn box_hidden(&self, poly: &SppPolygon) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if poly.route == Route::Avx2Small {
+            // SAFETY: `box_hidden_avx2` only needs the features `has_avx2` found the
+            // processor to have: `polygon` chooses an AVX2 route only for an SPP set
+            // whose `avx2` says so.
+            #[allow(unsafe_code, reason = "a function compiled for AVX2, after detection")]
+            unsafe {
+                return self.box_hidden_avx2(poly);
+            }
+        }
+        let _ = poly;
+        false
+    }
+
+    /// [`Self::box_hidden`] in AVX2: each cell the box meets, its mask ORed with the
+    /// pixels outside the box ([`box_outside_at_avx2`]), all ones for every cell.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline(never)]
+    fn box_hidden_avx2(&self, poly: &SppPolygon) -> bool {
+        use std::arch::x86_64::{__m256i, _mm256_and_si256, _mm256_load_si256, _mm256_or_si256, _mm256_set1_epi16, _mm256_testc_si256};
+        let [x0, x1, y0, y1] = poly.bbox;
+        let ones = _mm256_set1_epi16(-1);
+        let mut all = ones;
+        for cy in y0 / CELL_SIDE..=(y1 - 1) / CELL_SIDE {
+            for cx in x0 / CELL_SIDE..=(x1 - 1) / CELL_SIDE {
+                let mask_ptr: *const __m256i = self.masks[cy as usize * self.stride + cx as usize].0.as_ptr().cast();
+                // SAFETY: a cell's mask is 16 `u16` aligned to 32 bytes ([`Words16`]),
+                // the 32 bytes the aligned load reads.
+                #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
+                let mask = unsafe { _mm256_load_si256(mask_ptr) };
+                let outside = box_outside_at_avx2(cx * CELL_SIDE, cy * CELL_SIDE, &poly.lanes);
+                all = _mm256_and_si256(all, _mm256_or_si256(mask, outside));
+            }
+        }
+        _mm256_testc_si256(all, ones) != 0
+    }
+
     /// [`Self::process_to`] of a fragment that no edge crosses (a cell wholly inside
     /// its polygon: every pixel's code is [`FULL`]), with counting off: no look-ups,
     /// and the same visible sets and mask memory (tested against `process`), written
