@@ -956,14 +956,12 @@ mod tests {
             let db = crate::gp::Database::new(scene);
             let (frame, _) = crate::gp::frame_of_scene(&db, &crate::gp::GpConfig::default());
             let l = CellProcessors::root_level_for(width, height);
-            for masks in [MaskLevels::mode_iv(l), MaskLevels::NONE, MaskLevels::mode_ii(l), MaskLevels::range(1, l - 1)] {
+            for masks in [MaskLevels::mode_iv(l), MaskLevels::NONE, MaskLevels::mode_ii(l), MaskLevels::range(1, l - 1)]
+            {
                 for hierarchical in [true, false] {
                     let run = |hidden_boxes: bool| {
-                        let mut vp = VideoProcessor::new(
-                            width,
-                            height,
-                            VpConfig { masks, hierarchical, ..VpConfig::default() },
-                        );
+                        let mut vp =
+                            VideoProcessor::new(width, height, VpConfig { masks, hierarchical, ..VpConfig::default() });
                         vp.gq.hidden_boxes = hidden_boxes;
                         let mut cells = Vec::new();
                         VideoProcessor::run::<false>(
