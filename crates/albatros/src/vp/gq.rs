@@ -540,6 +540,9 @@ pub struct CellProcessors {
     /// Whether [`Self::descend_filling`] finds a small polygon's last-level cells at
     /// once ([`Self::last_cells`]); off, it splits level by level (for tests).
     at_once: bool,
+    /// Whether [`Self::descend_filling`] passes over a polygon whose box its sink
+    /// finds hidden ([`FragmentSink::box_hidden`]); off for the VP's tests.
+    pub(super) hidden_boxes: bool,
 }
 
 /// A level-L cell handed to the SPPs, with the edges that cross it; or, from
@@ -590,6 +593,16 @@ pub const ONE_CELL: u8 = 1;
 pub trait FragmentSink {
     /// One fragment of the polygon being descended.
     fn fragment(&mut self, frag: Fragment<'_>);
+
+    /// Whether no fragment of the polygon can have a visible subpixel: every pixel
+    /// of its box is covered already (the VP's sink asks the SPPs' mask memory,
+    /// [`super::spp::SubpixelProcessors::box_hidden`]). Asked once a polygon by the
+    /// filling descent ([`CellProcessors::descend_filling`]), which then passes the
+    /// polygon over. `false` unless the sink knows better.
+    #[inline(always)]
+    fn box_hidden(&mut self) -> bool {
+        false
+    }
 }
 
 /// A closure as a [`FragmentSink`].
@@ -649,6 +662,7 @@ impl CellProcessors {
             inside: vec![Vec::new(); root_level as usize + 1],
             queued: 0,
             at_once: true,
+            hidden_boxes: true,
         }
     }
 
@@ -858,6 +872,18 @@ impl CellProcessors {
             if let Some(rec) = &mut self.recorder {
                 rec.push((start, CellKind::Start));
             }
+        }
+        // Every pixel of the box covered already (with counting off): its every
+        // fragment would be hidden, leave the masks as they are, make no first write
+        // and mark nothing, so the polygon is passed over whole. Its descent would
+        // mark no GQ cell either: a cell wholly inside it lies inside its box, so all
+        // its subpixels are set, and such a cell is marked covered already, as its
+        // last fragment found it covered (under Greene's rule); and without the rule
+        // the marks it leaves out change later polygons' work, never their subpixels
+        // (they stay sound and closed downward). `many` 960 x 540: 466 k of its
+        // 1,000 k triangles, 155 k of them dropped by the test above.
+        if FILL && self.hidden_boxes && spp.box_hidden() {
+            return;
         }
         let n = poly.edges.len();
         if n > self.stride {

@@ -1314,6 +1314,80 @@ impl SubpixelProcessors {
         Ok([_mm_movemask_epi8(by_column) as u16, _mm_movemask_epi8(bytes) as u16])
     }
 
+    /// Whether every pixel of a small polygon's box is covered already (all 16
+    /// subpixels set in the mask memory), with counting off: then none of its
+    /// fragments can have a visible subpixel (no subpixel outside its box is the
+    /// polygon's, [`box_pixels`]), none makes a first write or changes the mask, and
+    /// the VP passes the polygon over before its descent, where each of its fragments
+    /// would have been found hidden one by one ([`Self::hidden_avx2`]). Only for the
+    /// polygons of [`Route::Avx2Small`] (`false` for the others): a large box is
+    /// rarely all covered, and a wholly covered cell never reaches the SPPs.
+    #[inline(always)]
+    pub fn box_hidden(&self, poly: &SppPolygon) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if poly.route == Route::Avx2Small {
+            // SAFETY: `box_hidden_avx2` only needs the features `has_avx2` found the
+            // processor to have: `polygon` chooses an AVX2 route only for an SPP set
+            // whose `avx2` says so.
+            #[allow(unsafe_code, reason = "a function compiled for AVX2, after detection")]
+            unsafe {
+                return self.box_hidden_avx2(poly);
+            }
+        }
+        let _ = poly;
+        false
+    }
+
+    /// [`Self::box_hidden`] in AVX2: cell by cell, row by row, the box's pixels in
+    /// the cell (as two bits a pixel, the order of a byte mask of 16-bit lanes)
+    /// against the cell's full pixels (its mask's lanes equal to all ones); the
+    /// first cell with a box pixel not full ends it (most polygons not hidden meet
+    /// one in their first cell).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline(never)]
+    fn box_hidden_avx2(&self, poly: &SppPolygon) -> bool {
+        use std::arch::x86_64::{
+            __m256i, _mm256_cmpeq_epi16, _mm256_load_si256, _mm256_movemask_epi8, _mm256_set1_epi16,
+        };
+        let [x0, x1, y0, y1] = poly.bbox;
+        let ones = _mm256_set1_epi16(-1);
+        // The pixels `lo..hi` of a cell's four along an axis (`hi` in 1..=4), each
+        // `unit` bits of the byte mask.
+        let span = |lo: u32, hi: u32, unit: u32| (!0u32 >> (32 - unit * hi)) & (!0u32 << (unit * lo));
+        let (cx0, cx1) = (x0 / CELL_SIDE, (x1 - 1) / CELL_SIDE);
+        let (cy0, cy1) = (y0 / CELL_SIDE, (y1 - 1) / CELL_SIDE);
+        let (first_x, last_x) = (x0 % CELL_SIDE, (x1 - 1) % CELL_SIDE + 1);
+        let (first_y, last_y) = (y0 % CELL_SIDE, (y1 - 1) % CELL_SIDE + 1);
+        let mut cy = cy0;
+        loop {
+            // The row's pixels in the box: a byte of the mask's four lanes a row.
+            let rows = span(if cy == cy0 { first_y } else { 0 }, if cy == cy1 { last_y } else { 4 }, 8);
+            let row = &self.masks[cy as usize * self.stride..];
+            let mut cx = cx0;
+            loop {
+                let columns = span(if cx == cx0 { first_x } else { 0 }, if cx == cx1 { last_x } else { 4 }, 2);
+                let mask_ptr: *const __m256i = row[cx as usize].0.as_ptr().cast();
+                // SAFETY: a cell's mask is 16 `u16` aligned to 32 bytes ([`Words16`]),
+                // the 32 bytes the aligned load reads.
+                #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
+                let mask = unsafe { _mm256_load_si256(mask_ptr) };
+                let full = _mm256_movemask_epi8(_mm256_cmpeq_epi16(mask, ones)) as u32;
+                if (columns * 0x0101_0101) & rows & !full != 0 {
+                    return false;
+                }
+                if cx == cx1 {
+                    break;
+                }
+                cx += 1;
+            }
+            if cy == cy1 {
+                return true;
+            }
+            cy += 1;
+        }
+    }
+
     /// [`Self::process_to`] of a fragment that no edge crosses (a cell wholly inside
     /// its polygon: every pixel's code is [`FULL`]), with counting off: no look-ups,
     /// and the same visible sets and mask memory (tested against `process`), written
@@ -3209,6 +3283,46 @@ mod tests {
             assert_eq!(a.masks[cell], b.masks[cell], "case {k}");
             assert_eq!(ca, cb, "case {k}");
         }
+    }
+
+    /// [`SubpixelProcessors::box_hidden`] is its definition: every pixel of the box
+    /// has all 16 subpixels set in the mask memory (for a small polygon with the
+    /// AVX2 route; `false` otherwise), over random masks (mostly full pixels) and
+    /// boxes of 1 to 20 pixels each way anywhere on the screen, at its ragged edges
+    /// too.
+    #[test]
+    fn box_hidden_is_its_definition() {
+        let mut next = xorshift(0x0B0C_5EED_4B1D_0001);
+        let (w, h) = (61, 43);
+        let mut a = SubpixelProcessors::new(w, h, SppMode::Area);
+        let (mut hidden, mut shown) = (0, 0);
+        for k in 0..40_000 {
+            if k % 50 == 0 {
+                let full = next(8) as u32;
+                for m in &mut a.masks {
+                    m.0 = std::array::from_fn(|_| if (next(8) as u32) <= full { FULL } else { next(1 << 16) as u16 });
+                }
+            }
+            let (x0, y0) = (next(i64::from(w)) as u32, next(i64::from(h)) as u32);
+            let (x1, y1) = ((x0 + 1 + next(20) as u32).min(w), (y0 + 1 + next(20) as u32).min(h));
+            let bbox = [x0, x1, y0, y1];
+            let poly = a.polygon(bbox, 0);
+            let want = poly.route == Route::Avx2Small
+                && (y0..y1).all(|y| {
+                    (x0..x1).all(|x| {
+                        a.masks[(y / CELL_SIDE) as usize * a.stride + (x / CELL_SIDE) as usize].0
+                            [(4 * (y % CELL_SIDE) + x % CELL_SIDE) as usize]
+                            == FULL
+                    })
+                });
+            assert_eq!(a.box_hidden(&poly), want, "case {k}: box {bbox:?}");
+            if want {
+                hidden += 1;
+            } else {
+                shown += 1;
+            }
+        }
+        assert!(!a.avx2 || (hidden > 1000 && shown > 1000), "{hidden} hidden, {shown} not");
     }
 
     /// [`word_bits`] (SSE2 on x86-64) is [`word_bits_portable`].
