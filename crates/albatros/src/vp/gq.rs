@@ -1102,7 +1102,7 @@ impl CellProcessors {
     /// inside marked and filled, the others split). A split's decisions are each
     /// child's alone: an edge codes a child IN when its line lies at or before the
     /// child's near border on the polygon's side, OUT when at or beyond its far one
-    /// ([`edge_code`]), by the V of the child's own stretch, which is the edge's V at
+    /// (the tests' `edge_code`), by the V of the child's own stretch, which is the edge's V at
     /// the child's borders (exact, [`super::edge`]); so a cell of level L - 1 is OUT
     /// for an edge (dropped by the start) when its four children are, IN when they
     /// are, and the split's child lists hold, in order, the edges that cross the
@@ -1590,7 +1590,7 @@ const WINDOW_SPAN: u32 = 4;
 /// higher V those with `hi <= s side`, `s >= ceil(hi / side)` (V relative to the
 /// window's first border across V): two shifts a line, and the cells' bits, in
 /// their places in the window, from a table ([`LINE_CELLS`]). IN and OUT by LR, as the GQ ROM's codes of each child
-/// ([`edge_code`]). Only the lines the start's cells reach are coded (the others'
+/// (the tests' `edge_code`). Only the lines the start's cells reach are coded (the others'
 /// bits are never read).
 struct LastCells {
     /// Per edge, V at the window's first border along it, relative to its first

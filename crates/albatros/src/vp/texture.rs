@@ -333,7 +333,7 @@ pub(crate) struct MapAvx2<'a> {
     map: &'a TextureMap,
     /// The TAC's ROMs.
     rom: &'static TacRom,
-    /// The side `2^n` (as `f32`), `n` (as `f32`), and `2^(n+1)`: [`Self::level`]'s
+    /// The side `2^n` (as `f32`), `n` (as `f32`), and `2^(n+1)`: [`Self::level_avx2`]'s
     /// scale and clamps ([`lod_of_texels`]).
     side: __m256,
     top: __m256,

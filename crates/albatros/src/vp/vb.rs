@@ -697,7 +697,7 @@ struct PairMeans {
     ln2: i16,
     /// `T[4 k]` at `k = 0..=255`: `T` at the difference of two loaded codes `k`
     /// apart (quarter codes), for the first pass by arithmetic
-    /// ([`PairMeans::mean_codes`]); 0 from `k = 247` on (past the table's end).
+    /// (the tests' `PairMeans::mean_codes`); 0 from `k = 247` on (past the table's end).
     code_softplus: [u8; 1 << PAIR_MEANS_BITS],
 }
 
@@ -771,8 +771,8 @@ impl PairMeans {
 
 /// The 8-bit code's gamma table: an F2 result `v` before its raise to code 1
 /// ([`PairMeans::mean_address`]) or a loaded code, read as a `u16`, to the output
-/// byte. F2's second pass gives either [`LOG8_ZERO`] (two zeros: entry 0) or `hi + T
-/// - T[0]` for `hi` at least code 1, in `4 - T[0] ..= 4 Q1`, whose values below code
+/// byte. F2's second pass gives either [`LOG8_ZERO`] (two zeros: entry 0) or
+/// `hi + T - T[0]` for `hi` at least code 1, in `4 - T[0] ..= 4 Q1`, whose values below code
 /// 1 are raised to it: entries `0..4` and the top `T[0] - 4` (the negative ones) hold
 /// code 1's output, `4..=4 Q1` the gamma table's, the rest 0. `table`: the scale's
 /// [`LogScale::gamma_table`].
@@ -3106,7 +3106,7 @@ fn code_softplus_avx2(table: &[u8; 1 << PAIR_MEANS_BITS], d: __m256i) -> __m256i
     level[0]
 }
 
-/// [`Log8Portable::pass1`] in AVX2 by [`PairMeans::mean_codes`] on the bytes of the
+/// [`Log8Portable::pass1`] in AVX2 by `PairMeans::mean_codes` (the tests') on the bytes of the
 /// run (two registers of 8 words, 32 codes each): the larger and smaller codes and
 /// their difference in bytes, `T[4 k]` by [`code_softplus_avx2`], 0 where the smaller
 /// is zero; then in 16-bit lanes `4 hi - T[0] + T` raised to code 1, [`LOG8_ZERO`]
@@ -3750,7 +3750,7 @@ fn read_out_log8_pass2(
     }
 }
 
-/// [`Log8Portable::pass1`] in AVX-512 by [`PairMeans::mean_codes`] on the bytes of
+/// [`Log8Portable::pass1`] in AVX-512 by `PairMeans::mean_codes` (the tests') on the bytes of
 /// the run (one register: 16 words, 64 codes): the larger and smaller codes and their
 /// difference in bytes, `T[4 k]` by two two-register byte permutes (128 entries
 /// each) chosen by the difference's top bit, 0 where the smaller is zero; then in
