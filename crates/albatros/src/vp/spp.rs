@@ -1351,6 +1351,11 @@ impl SubpixelProcessors {
             __m256i, _mm256_cmpeq_epi16, _mm256_load_si256, _mm256_movemask_epi8, _mm256_set1_epi16,
         };
         let [x0, x1, y0, y1] = poly.bbox;
+        // An empty box (the box of a polygon with no finite vertex, say) is left to
+        // the descent, as before: no `x1 - 1` below zero.
+        if x1 <= x0 || y1 <= y0 {
+            return false;
+        }
         let ones = _mm256_set1_epi16(-1);
         // The pixels `lo..hi` of a cell's four along an axis (`hi` in 1..=4), each
         // `unit` bits of the byte mask.
@@ -3323,6 +3328,15 @@ mod tests {
             }
         }
         assert!(!a.avx2 || (hidden > 1000 && shown > 1000), "{hidden} hidden, {shown} not");
+        // Empty boxes (at the screen's corners too) are never hidden and do not panic,
+        // every mask full.
+        for m in &mut a.masks {
+            m.0 = [FULL; 16];
+        }
+        for bbox in [[0, 0, 0, 0], [w, 0, h, 0], [5, 5, 3, 9], [5, 9, 3, 3], [w, w, h, h]] {
+            let poly = a.polygon(bbox, 0);
+            assert!(!a.box_hidden(&poly), "empty box {bbox:?}");
+        }
     }
 
     /// [`word_bits`] (SSE2 on x86-64) is [`word_bits_portable`].
