@@ -1002,15 +1002,15 @@ impl<'a> Shared<'a> {
     #[inline(never)]
     fn culls_large(&self, n: u32, inside: &Cell<(u32, u32)>) -> bool {
         let bsp = &self.db.bsp;
+        let end = n + bsp.subtree_nodes(n);
         match self.frustum.place(bsp.bounds(n)) {
             Some(false) => {}
             Some(true) => {
-                inside.set((n, n + bsp.subtree_nodes(n)));
+                inside.set((n, end));
                 return false;
             }
             None => return false,
         }
-        let end = n + bsp.subtree_nodes(n);
         let first = self.guests.partition_point(|g| g.0 < n);
         self.guests.get(first).is_none_or(|g| g.0 >= end)
     }

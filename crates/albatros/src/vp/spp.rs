@@ -1338,18 +1338,15 @@ impl SubpixelProcessors {
         false
     }
 
-    /// [`Self::box_hidden`] in AVX2: cell by cell, row by row, the box's pixels in
-    /// the cell (as two bits a pixel, the order of a byte mask of 16-bit lanes)
-    /// against the cell's full pixels (its mask's lanes equal to all ones); the
-    /// first cell with a box pixel not full ends it (most polygons not hidden meet
-    /// one in their first cell).
+    /// [`Self::box_hidden`] in AVX2: cell by cell, row by row, the cell's mask with
+    /// the pixels outside the box set ([`box_outside_at_avx2`], the clip of every
+    /// AVX2 fragment) against all ones; the first cell with a box pixel not full
+    /// ends it (most polygons not hidden meet one in their first cell).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     #[inline(never)]
     fn box_hidden_avx2(&self, poly: &SppPolygon) -> bool {
-        use std::arch::x86_64::{
-            __m256i, _mm256_cmpeq_epi16, _mm256_load_si256, _mm256_movemask_epi8, _mm256_set1_epi16,
-        };
+        use std::arch::x86_64::{__m256i, _mm256_load_si256, _mm256_or_si256, _mm256_set1_epi16, _mm256_testc_si256};
         let [x0, x1, y0, y1] = poly.bbox;
         // An empty box (the box of a polygon with no finite vertex, say) is left to
         // the descent, as before: no `x1 - 1` below zero.
@@ -1357,40 +1354,23 @@ impl SubpixelProcessors {
             return false;
         }
         let ones = _mm256_set1_epi16(-1);
-        // The pixels `lo..hi` of a cell's four along an axis (`hi` in 1..=4), each
-        // `unit` bits of the byte mask.
-        let span = |lo: u32, hi: u32, unit: u32| (!0u32 >> (32 - unit * hi)) & (!0u32 << (unit * lo));
-        let (cx0, cx1) = (x0 / CELL_SIDE, (x1 - 1) / CELL_SIDE);
-        let (cy0, cy1) = (y0 / CELL_SIDE, (y1 - 1) / CELL_SIDE);
-        let (first_x, last_x) = (x0 % CELL_SIDE, (x1 - 1) % CELL_SIDE + 1);
-        let (first_y, last_y) = (y0 % CELL_SIDE, (y1 - 1) % CELL_SIDE + 1);
-        let mut cy = cy0;
-        loop {
-            // The row's pixels in the box: a byte of the mask's four lanes a row.
-            let rows = span(if cy == cy0 { first_y } else { 0 }, if cy == cy1 { last_y } else { 4 }, 8);
+        for cy in y0 / CELL_SIDE..=(y1 - 1) / CELL_SIDE {
             let row = &self.masks[cy as usize * self.stride..];
-            let mut cx = cx0;
-            loop {
-                let columns = span(if cx == cx0 { first_x } else { 0 }, if cx == cx1 { last_x } else { 4 }, 2);
+            for cx in x0 / CELL_SIDE..=(x1 - 1) / CELL_SIDE {
                 let mask_ptr: *const __m256i = row[cx as usize].0.as_ptr().cast();
                 // SAFETY: a cell's mask is 16 `u16` aligned to 32 bytes ([`Words16`]),
                 // the 32 bytes the aligned load reads.
                 #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
                 let mask = unsafe { _mm256_load_si256(mask_ptr) };
-                let full = _mm256_movemask_epi8(_mm256_cmpeq_epi16(mask, ones)) as u32;
-                if (columns * 0x0101_0101) & rows & !full != 0 {
+                // A box pixel not full: `!(mask | outside) & ones` is not zero (the
+                // test of `hidden_avx2`).
+                let outside = box_outside_at_avx2(cx * CELL_SIDE, cy * CELL_SIDE, &poly.lanes);
+                if _mm256_testc_si256(_mm256_or_si256(mask, outside), ones) == 0 {
                     return false;
                 }
-                if cx == cx1 {
-                    break;
-                }
-                cx += 1;
             }
-            if cy == cy1 {
-                return true;
-            }
-            cy += 1;
         }
+        true
     }
 
     /// [`Self::process_to`] of a fragment that no edge crosses (a cell wholly inside
