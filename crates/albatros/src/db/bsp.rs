@@ -215,83 +215,14 @@ impl Bsp {
     /// Builds the tree over `faces` (each convex, planar, non-degenerate).
     pub fn build(faces: Vec<BspFace>) -> Self {
         let input = faces.len();
-        let extent =
-            faces.iter().flat_map(|f| f.vertices.iter()).fold(1.0f64, |m, v| m.max(v.position.abs().max_element()));
-        let mut bsp = Bsp { eps: extent * PLANE_EPS, faces, ..Bsp::default() };
+        let builder = Builder::new(faces);
+        let mut bsp = Bsp { eps: builder.eps, ..Bsp::default() };
         bsp.stats.input_faces = input;
-        if bsp.faces.is_empty() {
+        if builder.faces.is_empty() {
+            bsp.faces = builder.faces;
             return bsp;
         }
-        // Work stack of nodes to build.
-        struct Work {
-            /// The parent and whether this is its front child.
-            link: Option<(u32, bool)>,
-            /// The faces in this node's region.
-            list: Vec<u32>,
-            depth: usize,
-        }
-        let all: Vec<u32> = (0..bsp.faces.len() as u32).collect();
-        // Each node's faces while building (numbered as built; renumbered at the end).
-        let mut node_faces: Vec<Vec<u32>> = Vec::new();
-        let mut stack = vec![Work { link: None, list: all, depth: 1 }];
-        while let Some(Work { link, list, depth }) = stack.pop() {
-            let node = bsp.nodes.len() as u32;
-            if let Some((parent, front)) = link {
-                let p = &mut bsp.nodes[parent as usize];
-                if front {
-                    p.front = node;
-                } else {
-                    p.back = node;
-                }
-            }
-            bsp.stats.depth = bsp.stats.depth.max(depth);
-            let (mut plane, mut owner) = bsp.choose_plane(&list, false);
-            if owner.is_none() && !bsp.separates(&list, &plane) {
-                // The sample promised progress the whole list does not give.
-                (plane, owner) = bsp.choose_plane(&list, true);
-            }
-            let axis = owner.is_none();
-            if axis {
-                bsp.stats.axis_nodes += 1;
-            }
-            let mut on = Vec::new();
-            let mut front = Vec::new();
-            let mut back = Vec::new();
-            for &fi in &list {
-                // The face whose plane this is lies in it, whatever rounding says.
-                let side = if Some(fi) == owner { Side::On } else { bsp.side(fi, &plane) };
-                match side {
-                    Side::Front => front.push(fi),
-                    Side::Back => back.push(fi),
-                    Side::On => {
-                        if axis {
-                            // A free plane: the face goes where its normal points.
-                            if bsp.faces[fi as usize].plane.normal.dot(plane.normal) >= 0.0 {
-                                front.push(fi)
-                            } else {
-                                back.push(fi)
-                            }
-                        } else {
-                            on.push(fi)
-                        }
-                    }
-                    Side::Straddle => {
-                        let (f, b) = bsp.split(fi, &plane);
-                        bsp.stats.splits += 1;
-                        front.extend(f);
-                        back.extend(b);
-                    }
-                }
-            }
-            bsp.nodes.push(BspNode { plane, front: NONE, back: NONE, faces: 0..0 });
-            node_faces.push(on);
-            if !back.is_empty() {
-                stack.push(Work { link: Some((node, false)), list: back, depth: depth + 1 });
-            }
-            if !front.is_empty() {
-                stack.push(Work { link: Some((node, true)), list: front, depth: depth + 1 });
-            }
-        }
+        let node_faces = builder.grow(&mut bsp);
         bsp.renumber_faces(node_faces);
         bsp.stats.nodes = bsp.nodes.len();
         bsp.stats.faces = bsp.faces.len();
@@ -480,11 +411,207 @@ impl Bsp {
         faces.extend(old.into_iter().flatten());
         self.faces = faces;
     }
+}
 
+/// A node's plane as [`Builder::choose_plane`] picks it.
+#[derive(Clone, Copy, Debug)]
+enum Cut {
+    /// A free axis-aligned plane (`normal` the unit vector of `axis`).
+    Free { plane: Plane, axis: usize },
+    /// The plane of face `owner`.
+    Face { plane: Plane, owner: u32 },
+}
+
+impl Cut {
+    fn plane(&self) -> Plane {
+        match *self {
+            Cut::Free { plane, .. } | Cut::Face { plane, .. } => plane,
+        }
+    }
+}
+
+/// The tree's builder: the faces (split ones included) and, per face, flat copies of
+/// the numbers the choice of planes reads.
+///
+/// Why the copies: a node tries up to 9 free planes and 8 face planes over a sample
+/// of up to [`COST_SAMPLE`] faces, then sorts all its faces; reading each face's
+/// vertices from its own heap block made that a cache miss per face per plane (on
+/// `many`, a million triangles, 13 s of its start). A free plane `normal = e_axis`
+/// gives each vertex the distance `p[axis] - d` exactly (the dot product is
+/// `p.x * n.x + p.y * n.y + p.z * n.z`, no fused multiply-add, the zero terms adding
+/// only a signed zero), and `p - d` is monotone in `p`: a face has a vertex more
+/// than `eps` in front of it exactly when its greatest coordinate does, and one
+/// behind exactly when its least does. So a free plane's test reads two numbers a
+/// face ([`Builder::extents`]); a face plane's still computes every vertex's distance
+/// as [`Plane::distance`] does, from [`Builder::positions`], which lie in face order.
+///
+/// **Invariant**: for every face `f`, `extents[a][f]`, `centroids[a][f]` and
+/// `positions[spans[f]]` are those of `faces[f].vertices` (kept so at every split).
+struct Builder {
+    /// The faces; a split's front piece replaces its face, the back piece is appended.
+    faces: Vec<BspFace>,
+    /// Per axis, per face: its least and greatest vertex coordinate (the first
+    /// vertex's of equal ones, as a scan with strict comparisons finds them).
+    extents: [Vec<[f64; 2]>; 3],
+    /// Per axis, per face: its centroid's coordinate ([`centroid`]).
+    centroids: [Vec<f64>; 3],
+    /// Per face: its vertices' positions, `positions[start..end]`.
+    spans: Vec<[u32; 2]>,
+    /// The faces' vertex positions.
+    positions: Vec<DVec3>,
+    /// [`Bsp::eps`].
+    eps: f64,
+}
+
+/// The centroid of a face's vertices.
+fn centroid(vs: &[BspVertex]) -> DVec3 {
+    vs.iter().map(|v| v.position).sum::<DVec3>() / vs.len() as f64
+}
+
+/// The least and greatest coordinate along `axis` of a face's vertices (of equal
+/// ones, the first).
+fn extent(vs: &[BspVertex], axis: usize) -> [f64; 2] {
+    let first = vs[0].position[axis];
+    let (mut lo, mut hi) = (first, first);
+    for v in &vs[1..] {
+        let x = v.position[axis];
+        if x < lo {
+            lo = x;
+        }
+        if x > hi {
+            hi = x;
+        }
+    }
+    [lo, hi]
+}
+
+impl Builder {
+    /// Takes the faces and makes their copies; `eps` from the scene's extent.
+    fn new(faces: Vec<BspFace>) -> Self {
+        let vertices: usize = faces.iter().map(|f| f.vertices.len()).sum();
+        let mut b = Builder {
+            extents: std::array::from_fn(|_| Vec::with_capacity(faces.len())),
+            centroids: std::array::from_fn(|_| Vec::with_capacity(faces.len())),
+            spans: Vec::with_capacity(faces.len()),
+            positions: Vec::with_capacity(vertices),
+            faces: Vec::new(),
+            eps: 0.0,
+        };
+        let mut extent = 1.0f64;
+        for f in &faces {
+            for v in &f.vertices {
+                extent = extent.max(v.position.abs().max_element());
+            }
+            b.push_copies(&f.vertices);
+        }
+        b.faces = faces;
+        b.eps = extent * PLANE_EPS;
+        b
+    }
+
+    /// Appends the copies of a face's numbers (see [`Builder`]).
+    fn push_copies(&mut self, vs: &[BspVertex]) {
+        let start = self.positions.len() as u32;
+        self.positions.extend(vs.iter().map(|v| v.position));
+        self.spans.push([start, self.positions.len() as u32]);
+        let c = centroid(vs);
+        for axis in 0..3 {
+            self.extents[axis].push(extent(vs, axis));
+            self.centroids[axis].push(c[axis]);
+        }
+    }
+
+    /// Builds the nodes into `bsp` (depth first, front child first) and returns each
+    /// node's faces (numbered as in [`Builder::faces`], which it leaves in `bsp`).
+    fn grow(mut self, bsp: &mut Bsp) -> Vec<Vec<u32>> {
+        // Work stack of nodes to build.
+        struct Work {
+            /// The parent and whether this is its front child.
+            link: Option<(u32, bool)>,
+            /// The faces in this node's region.
+            list: Vec<u32>,
+            depth: usize,
+        }
+        let all: Vec<u32> = (0..self.faces.len() as u32).collect();
+        // Each node's faces while building (numbered as built; renumbered at the end).
+        let mut node_faces: Vec<Vec<u32>> = Vec::new();
+        let mut stack = vec![Work { link: None, list: all, depth: 1 }];
+        let mut scratch = Scratch::default();
+        while let Some(Work { link, list, depth }) = stack.pop() {
+            let node = bsp.nodes.len() as u32;
+            if let Some((parent, front)) = link {
+                let p = &mut bsp.nodes[parent as usize];
+                if front {
+                    p.front = node;
+                } else {
+                    p.back = node;
+                }
+            }
+            bsp.stats.depth = bsp.stats.depth.max(depth);
+            let mut cut = self.choose_plane(&list, false, &mut scratch);
+            if let Cut::Free { plane, axis } = cut {
+                if !self.separates(&list, axis, &plane) {
+                    // The sample promised progress the whole list does not give.
+                    cut = self.choose_plane(&list, true, &mut scratch);
+                }
+            }
+            let plane = cut.plane();
+            let mut on = Vec::new();
+            let mut front = Vec::new();
+            let mut back = Vec::new();
+            match cut {
+                Cut::Free { axis, .. } => {
+                    bsp.stats.axis_nodes += 1;
+                    for &fi in &list {
+                        match self.free_side(fi, axis, &plane) {
+                            Side::Front => front.push(fi),
+                            Side::Back => back.push(fi),
+                            // A free plane: the face goes where its normal points.
+                            Side::On => {
+                                if self.faces_front(fi, &plane) {
+                                    front.push(fi)
+                                } else {
+                                    back.push(fi)
+                                }
+                            }
+                            Side::Straddle => self.split(fi, &plane, &mut front, &mut back, &mut bsp.stats),
+                        }
+                    }
+                }
+                Cut::Face { owner, .. } => {
+                    for &fi in &list {
+                        // The face whose plane this is lies in it, whatever rounding says.
+                        let side = if fi == owner { Side::On } else { self.side(fi, &plane) };
+                        match side {
+                            Side::Front => front.push(fi),
+                            Side::Back => back.push(fi),
+                            Side::On => on.push(fi),
+                            Side::Straddle => self.split(fi, &plane, &mut front, &mut back, &mut bsp.stats),
+                        }
+                    }
+                }
+            }
+            drop(list);
+            bsp.nodes.push(BspNode { plane, front: NONE, back: NONE, faces: 0..0 });
+            node_faces.push(on);
+            if !back.is_empty() {
+                stack.push(Work { link: Some((node, false)), list: back, depth: depth + 1 });
+            }
+            if !front.is_empty() {
+                stack.push(Work { link: Some((node, true)), list: front, depth: depth + 1 });
+            }
+        }
+        bsp.faces = self.faces;
+        node_faces
+    }
+
+    /// Which side of a face plane face `fi` lies on: every vertex's distance.
+    #[inline]
     fn side(&self, fi: u32, plane: &Plane) -> Side {
+        let [start, end] = self.spans[fi as usize];
         let (mut f, mut b) = (false, false);
-        for v in &self.faces[fi as usize].vertices {
-            let d = plane.distance(v.position);
+        for &p in &self.positions[start as usize..end as usize] {
+            let d = plane.distance(p);
             if d > self.eps {
                 f = true;
             } else if d < -self.eps {
@@ -499,17 +626,36 @@ impl Bsp {
         }
     }
 
+    /// [`Builder::side`] for a free plane along `axis`, from the face's extent (the
+    /// same answer: see [`Builder`]).
+    #[inline]
+    fn free_side(&self, fi: u32, axis: usize, plane: &Plane) -> Side {
+        let [lo, hi] = self.extents[axis][fi as usize];
+        match (hi - plane.d > self.eps, lo - plane.d < -self.eps) {
+            (true, true) => Side::Straddle,
+            (true, false) => Side::Front,
+            (false, true) => Side::Back,
+            (false, false) => Side::On,
+        }
+    }
+
+    /// Whether face `fi`, lying in a free plane, faces its front.
+    #[inline]
+    fn faces_front(&self, fi: u32, plane: &Plane) -> bool {
+        self.faces[fi as usize].plane.normal.dot(plane.normal) >= 0.0
+    }
+
     /// Whether a free plane leaves faces on both sides (or cuts one), so that the
     /// recursion makes progress.
-    fn separates(&self, list: &[u32], plane: &Plane) -> bool {
+    fn separates(&self, list: &[u32], axis: usize, plane: &Plane) -> bool {
         let (mut f, mut b) = (false, false);
         for &fi in list {
-            match self.side(fi, plane) {
+            match self.free_side(fi, axis, plane) {
                 Side::Straddle => return true,
                 Side::Front => f = true,
                 Side::Back => b = true,
                 Side::On => {
-                    if self.faces[fi as usize].plane.normal.dot(plane.normal) >= 0.0 {
+                    if self.faces_front(fi, plane) {
                         f = true
                     } else {
                         b = true
@@ -523,35 +669,30 @@ impl Bsp {
         false
     }
 
-    /// Picks the plane for a node: `(plane, the face whose plane it is)`, `None` for a
-    /// free axis-aligned plane; only face planes when `faces_only`.
-    fn choose_plane(&self, list: &[u32], faces_only: bool) -> (Plane, Option<u32>) {
+    /// Picks the plane for a node; only face planes when `faces_only`.
+    fn choose_plane(&self, list: &[u32], faces_only: bool, scratch: &mut Scratch) -> Cut {
         let step = (list.len() / COST_SAMPLE).max(1);
-        let sample: Vec<u32> = list.iter().step_by(step).copied().collect();
-        let mut best: Option<(i64, Plane, Option<u32>)> = None;
-        let consider = |cost: i64, plane: Plane, owner: Option<u32>, best: &mut Option<(i64, Plane, Option<u32>)>| {
+        let sample: &[u32] = if step == 1 {
+            list
+        } else {
+            scratch.sample.clear();
+            scratch.sample.extend(list.iter().step_by(step));
+            &scratch.sample
+        };
+        let mut best: Option<(i64, Cut)> = None;
+        let consider = |cost: i64, cut: Cut, best: &mut Option<(i64, Cut)>| {
             if best.as_ref().is_none_or(|b| cost < b.0) {
-                *best = Some((cost, plane, owner));
+                *best = Some((cost, cut));
             }
         };
         if list.len() > AUTO_PARTITION_AT && !faces_only {
             for axis in 0..3 {
-                let mut cents: Vec<f64> = sample.iter().map(|&fi| self.centroid(fi)[axis]).collect();
+                let cents = &mut scratch.centroids;
+                cents.clear();
+                cents.extend(sample.iter().map(|&fi| self.centroids[axis][fi as usize]));
                 let mid = cents.len() / 2;
                 let (_, &mut median, _) = cents.select_nth_unstable_by(mid, f64::total_cmp);
-                // Vertex coordinates nearest the median on either side.
-                let (mut below, mut above) = (f64::MIN, f64::MAX);
-                for &fi in &sample {
-                    for v in &self.faces[fi as usize].vertices {
-                        let c = v.position[axis];
-                        if c <= median && c > below {
-                            below = c;
-                        }
-                        if c >= median && c < above {
-                            above = c;
-                        }
-                    }
-                }
+                let (below, above) = self.nearest_coordinates(sample, axis, median);
                 for pos in [median, below, above] {
                     if !pos.is_finite() || pos == f64::MIN || pos == f64::MAX {
                         continue;
@@ -559,92 +700,156 @@ impl Bsp {
                     let mut normal = DVec3::ZERO;
                     normal[axis] = 1.0;
                     let plane = Plane { normal, d: pos };
-                    if let Some(cost) = self.cost(&sample, &plane, true) {
-                        consider(cost, plane, None, &mut best);
+                    if let Some(cost) = self.free_cost(sample, axis, &plane) {
+                        consider(cost, Cut::Free { plane, axis }, &mut best);
                     }
                 }
             }
         }
         // On a large node a free plane is taken when there is one: face planes are
         // for the small nodes (and for when no free plane makes progress).
-        if let Some((_, plane, None)) = best {
+        if let Some((_, cut @ Cut::Free { .. })) = best {
             if list.len() > FACE_PLANES_BELOW {
-                return (plane, None);
+                return cut;
             }
         }
         // Face planes of a few spread-out faces.
         let candidates = 8.min(list.len());
         for k in 0..candidates {
-            let fi = list[k * list.len() / candidates];
-            let plane = self.faces[fi as usize].plane;
-            let cost = self.cost(&sample, &plane, false).unwrap_or(i64::MAX / 2);
-            consider(cost, plane, Some(fi), &mut best);
+            let owner = list[k * list.len() / candidates];
+            let plane = self.faces[owner as usize].plane;
+            let cost = self.face_cost(sample, &plane);
+            consider(cost, Cut::Face { plane, owner }, &mut best);
         }
-        let (_, plane, owner) = best.expect("a node has at least one face");
-        (plane, owner)
+        best.expect("a node has at least one face").1
     }
 
-    /// Cost of a plane over a sample of faces; `None` if a free plane leaves one side
+    /// The vertex coordinates along `axis` of the sample's faces nearest `median` at
+    /// or below it and at or above it (`f64::MIN`, `f64::MAX` when there is none;
+    /// of equal ones the first met, face by face, vertex by vertex). A face wholly
+    /// on one side gives its extent's end (the first of its equal vertices too).
+    fn nearest_coordinates(&self, sample: &[u32], axis: usize, median: f64) -> (f64, f64) {
+        let (mut below, mut above) = (f64::MIN, f64::MAX);
+        for &fi in sample {
+            let [lo, hi] = self.extents[axis][fi as usize];
+            if hi < median {
+                if hi > below {
+                    below = hi;
+                }
+            } else if lo > median {
+                if lo < above {
+                    above = lo;
+                }
+            } else {
+                let [start, end] = self.spans[fi as usize];
+                for p in &self.positions[start as usize..end as usize] {
+                    let c = p[axis];
+                    if c <= median && c > below {
+                        below = c;
+                    }
+                    if c >= median && c < above {
+                        above = c;
+                    }
+                }
+            }
+        }
+        (below, above)
+    }
+
+    /// Cost of a free plane over a sample of faces; `None` if it leaves one side
     /// empty (it would not make progress).
-    fn cost(&self, sample: &[u32], plane: &Plane, free: bool) -> Option<i64> {
+    fn free_cost(&self, sample: &[u32], axis: usize, plane: &Plane) -> Option<i64> {
+        let (mut f, mut b, mut s) = (0i64, 0i64, 0i64);
+        for &fi in sample {
+            match self.free_side(fi, axis, plane) {
+                Side::Front => f += 1,
+                Side::Back => b += 1,
+                Side::Straddle => s += 1,
+                Side::On => {
+                    if self.faces_front(fi, plane) {
+                        f += 1
+                    } else {
+                        b += 1
+                    }
+                }
+            }
+        }
+        if f + s == 0 || b + s == 0 {
+            return None;
+        }
+        Some(s * SPLIT_COST + (f - b).abs())
+    }
+
+    /// Cost of a face plane over a sample of faces (those lying in it cost nothing).
+    fn face_cost(&self, sample: &[u32], plane: &Plane) -> i64 {
         let (mut f, mut b, mut s) = (0i64, 0i64, 0i64);
         for &fi in sample {
             match self.side(fi, plane) {
                 Side::Front => f += 1,
                 Side::Back => b += 1,
                 Side::Straddle => s += 1,
-                Side::On => {
-                    if free {
-                        if self.faces[fi as usize].plane.normal.dot(plane.normal) >= 0.0 {
-                            f += 1
-                        } else {
-                            b += 1
-                        }
-                    }
-                }
+                Side::On => {}
             }
         }
-        if free && (f + s == 0 || b + s == 0) {
-            return None;
-        }
-        Some(s * SPLIT_COST + (f - b).abs())
+        s * SPLIT_COST + (f - b).abs()
     }
 
-    fn centroid(&self, fi: u32) -> DVec3 {
-        let vs = &self.faces[fi as usize].vertices;
-        vs.iter().map(|v| v.position).sum::<DVec3>() / vs.len() as f64
-    }
-
-    /// Splits face `fi` by `plane`: the front piece replaces it, the back piece is
-    /// appended. Returns the (front, back) face indices (a sliver below rounding may
-    /// vanish).
-    fn split(&mut self, fi: u32, plane: &Plane) -> (Option<u32>, Option<u32>) {
-        let face = self.faces[fi as usize].clone();
+    /// Splits face `fi` by `plane` and counts the split: the front piece replaces it,
+    /// the back piece is appended, and each goes to its list (a sliver below
+    /// rounding may vanish; none does, as a straddling face has a vertex beyond `eps`
+    /// on either side).
+    fn split(&mut self, fi: u32, plane: &Plane, front: &mut Vec<u32>, back: &mut Vec<u32>, stats: &mut BspStats) {
+        stats.splits += 1;
+        let face = &self.faces[fi as usize];
         let (fv, bv) = split_polygon(&face.vertices, plane, self.eps);
-        let mut out = (None, None);
         let mut front_used = false;
         for (verts, is_front) in [(fv, true), (bv, false)] {
             if verts.len() < 3 {
                 continue;
             }
-            let piece = BspFace { vertices: verts, ..face.clone() };
             let idx = if !front_used {
                 front_used = true;
-                self.faces[fi as usize] = piece;
+                let [start, end] = self.spans[fi as usize];
+                if verts.len() == (end - start) as usize {
+                    // Same count: the positions in place.
+                    for (p, v) in self.positions[start as usize..end as usize].iter_mut().zip(&verts) {
+                        *p = v.position;
+                    }
+                } else {
+                    let start = self.positions.len() as u32;
+                    self.positions.extend(verts.iter().map(|v| v.position));
+                    self.spans[fi as usize] = [start, self.positions.len() as u32];
+                }
+                let c = centroid(&verts);
+                for axis in 0..3 {
+                    self.extents[axis][fi as usize] = extent(&verts, axis);
+                    self.centroids[axis][fi as usize] = c[axis];
+                }
+                self.faces[fi as usize].vertices = verts;
                 fi
             } else {
-                self.faces.push(piece);
+                self.push_copies(&verts);
+                let &BspFace { plane, material, instance, face, .. } = &self.faces[fi as usize];
+                self.faces.push(BspFace { vertices: verts, plane, material, instance, face });
                 (self.faces.len() - 1) as u32
             };
             if is_front {
-                out.0 = Some(idx);
+                front.push(idx);
             } else {
-                out.1 = Some(idx);
+                back.push(idx);
             }
         }
-        out
     }
+}
 
+/// [`Builder::choose_plane`]'s working space, kept from node to node.
+#[derive(Default)]
+struct Scratch {
+    sample: Vec<u32>,
+    centroids: Vec<f64>,
+}
+
+impl Bsp {
     /// Front-to-back order of the tree's faces for an eye at `eye`: `visit` is called
     /// with [`Visit::Face`] for every face, and with [`Visit::Guests`] at the place
     /// where the moving models attached to `(node, slot)` go (see [`Bsp::attach`]).
