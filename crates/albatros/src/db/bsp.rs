@@ -430,37 +430,31 @@ impl Cut {
     }
 }
 
-/// The tree's builder: the faces (split ones included) and, per face, flat copies of
-/// the numbers the choice of planes reads.
+/// A face in a node's list while the tree is built: its number in
+/// [`Builder::faces`] and the numbers of it that the free planes' tests read.
 ///
-/// Why the copies: a node tries up to 9 free planes and 8 face planes over a sample
-/// of up to [`COST_SAMPLE`] faces, then sorts all its faces; reading each face's
-/// vertices from its own heap block made that a cache miss per face per plane (on
-/// `many`, a million triangles, 13 s of its start). A free plane `normal = e_axis`
-/// gives each vertex the distance `p[axis] - d` exactly (the dot product is
-/// `p.x * n.x + p.y * n.y + p.z * n.z`, no fused multiply-add, the zero terms adding
-/// only a signed zero), and `p - d` is monotone in `p`: a face has a vertex more
-/// than `eps` in front of it exactly when its greatest coordinate does, and one
-/// behind exactly when its least does. So a free plane's test reads two numbers a
-/// face ([`Builder::extents`]); a face plane's still computes every vertex's distance
-/// as [`Plane::distance`] does, from [`Builder::positions`], which lie in face order.
+/// Why a copy in the list: a node tries up to 9 free planes over a sample of up to
+/// [`COST_SAMPLE`] faces, then sorts all its faces. The faces of a node are scattered
+/// over the whole face array (after a few splits of a million random triangles,
+/// anything goes), so reading each face's vertices from its own heap block (or
+/// anything indexed by face) was a cache miss per face per test: on `many`, a
+/// million triangles, 13 s of its start. The lists carry what the tests read and are
+/// read in sequence.
 ///
-/// **Invariant**: for every face `f`, `extents[a][f]`, `centroids[a][f]` and
-/// `positions[spans[f]]` are those of `faces[f].vertices` (kept so at every split).
-struct Builder {
-    /// The faces; a split's front piece replaces its face, the back piece is appended.
-    faces: Vec<BspFace>,
-    /// Per axis, per face: its least and greatest vertex coordinate (the first
-    /// vertex's of equal ones, as a scan with strict comparisons finds them).
-    extents: [Vec<[f64; 2]>; 3],
-    /// Per axis, per face: its centroid's coordinate ([`centroid`]).
-    centroids: [Vec<f64>; 3],
-    /// Per face: its vertices' positions, `positions[start..end]`.
-    spans: Vec<[u32; 2]>,
-    /// The faces' vertex positions.
-    positions: Vec<DVec3>,
-    /// [`Bsp::eps`].
-    eps: f64,
+/// A free plane `normal = e_axis` gives each vertex the distance `p[axis] - d`
+/// exactly (the dot product is `p.x * n.x + p.y * n.y + p.z * n.z`, no fused
+/// multiply-add, the zero terms adding only a signed zero), and `p - d` is monotone
+/// in `p`: a face has a vertex more than `eps` in front of the plane exactly when its
+/// greatest coordinate does, and one behind exactly when its least does. So a free
+/// plane's test reads two numbers of the item ([`Builder::free_side`]).
+#[derive(Clone, Copy, Debug)]
+struct Item {
+    /// Per axis: the least and greatest vertex coordinate ([`extent`]).
+    extents: [[f64; 2]; 3],
+    /// The centroid ([`centroid`]).
+    centroid: [f64; 3],
+    /// The face: an index into [`Builder::faces`].
+    face: u32,
 }
 
 /// The centroid of a face's vertices.
@@ -469,7 +463,7 @@ fn centroid(vs: &[BspVertex]) -> DVec3 {
 }
 
 /// The least and greatest coordinate along `axis` of a face's vertices (of equal
-/// ones, the first).
+/// ones, the first: strict comparisons in vertex order).
 fn extent(vs: &[BspVertex], axis: usize) -> [f64; 2] {
     let first = vs[0].position[axis];
     let (mut lo, mut hi) = (first, first);
@@ -485,40 +479,51 @@ fn extent(vs: &[BspVertex], axis: usize) -> [f64; 2] {
     [lo, hi]
 }
 
+impl Item {
+    /// The item of face number `face`, whose vertices are `vs`.
+    fn of(face: u32, vs: &[BspVertex]) -> Self {
+        Item {
+            extents: std::array::from_fn(|axis| extent(vs, axis)),
+            centroid: centroid(vs).to_array(),
+            face,
+        }
+    }
+}
+
+/// The tree's builder: the faces (split ones included) and their vertex positions
+/// in one array, in face order (a face plane's test computes every vertex's distance
+/// as [`Plane::distance`] does, from [`Builder::positions`]).
+///
+/// **Invariant**: for every face `f`, `positions[spans[f]]` are the positions of
+/// `faces[f].vertices`, and every [`Item`] of face `f` is `Item::of(f,
+/// &faces[f].vertices)` (both kept so at every split).
+struct Builder {
+    /// The faces; a split's front piece replaces its face, the back piece is appended.
+    faces: Vec<BspFace>,
+    /// Per face: its vertices' positions, `positions[start..end]`.
+    spans: Vec<[u32; 2]>,
+    /// The faces' vertex positions.
+    positions: Vec<DVec3>,
+    /// [`Bsp::eps`].
+    eps: f64,
+}
+
 impl Builder {
-    /// Takes the faces and makes their copies; `eps` from the scene's extent.
+    /// Takes the faces and copies their positions; `eps` from the scene's extent.
     fn new(faces: Vec<BspFace>) -> Self {
         let vertices: usize = faces.iter().map(|f| f.vertices.len()).sum();
-        let mut b = Builder {
-            extents: std::array::from_fn(|_| Vec::with_capacity(faces.len())),
-            centroids: std::array::from_fn(|_| Vec::with_capacity(faces.len())),
-            spans: Vec::with_capacity(faces.len()),
-            positions: Vec::with_capacity(vertices),
-            faces: Vec::new(),
-            eps: 0.0,
-        };
+        let mut spans = Vec::with_capacity(faces.len());
+        let mut positions = Vec::with_capacity(vertices);
         let mut extent = 1.0f64;
         for f in &faces {
+            let start = positions.len() as u32;
             for v in &f.vertices {
                 extent = extent.max(v.position.abs().max_element());
+                positions.push(v.position);
             }
-            b.push_copies(&f.vertices);
+            spans.push([start, positions.len() as u32]);
         }
-        b.faces = faces;
-        b.eps = extent * PLANE_EPS;
-        b
-    }
-
-    /// Appends the copies of a face's numbers (see [`Builder`]).
-    fn push_copies(&mut self, vs: &[BspVertex]) {
-        let start = self.positions.len() as u32;
-        self.positions.extend(vs.iter().map(|v| v.position));
-        self.spans.push([start, self.positions.len() as u32]);
-        let c = centroid(vs);
-        for axis in 0..3 {
-            self.extents[axis].push(extent(vs, axis));
-            self.centroids[axis].push(c[axis]);
-        }
+        Builder { faces, spans, positions, eps: extent * PLANE_EPS }
     }
 
     /// Builds the nodes into `bsp` (depth first, front child first) and returns each
@@ -529,10 +534,10 @@ impl Builder {
             /// The parent and whether this is its front child.
             link: Option<(u32, bool)>,
             /// The faces in this node's region.
-            list: Vec<u32>,
+            list: Vec<Item>,
             depth: usize,
         }
-        let all: Vec<u32> = (0..self.faces.len() as u32).collect();
+        let all: Vec<Item> = self.faces.iter().enumerate().map(|(fi, f)| Item::of(fi as u32, &f.vertices)).collect();
         // Each node's faces while building (numbered as built; renumbered at the end).
         let mut node_faces: Vec<Vec<u32>> = Vec::new();
         let mut stack = vec![Work { link: None, list: all, depth: 1 }];
@@ -562,31 +567,31 @@ impl Builder {
             match cut {
                 Cut::Free { axis, .. } => {
                     bsp.stats.axis_nodes += 1;
-                    for &fi in &list {
-                        match self.free_side(fi, axis, &plane) {
-                            Side::Front => front.push(fi),
-                            Side::Back => back.push(fi),
+                    for &item in &list {
+                        match self.free_side(&item, axis, &plane) {
+                            Side::Front => front.push(item),
+                            Side::Back => back.push(item),
                             // A free plane: the face goes where its normal points.
                             Side::On => {
-                                if self.faces_front(fi, &plane) {
-                                    front.push(fi)
+                                if self.faces_front(item.face, &plane) {
+                                    front.push(item)
                                 } else {
-                                    back.push(fi)
+                                    back.push(item)
                                 }
                             }
-                            Side::Straddle => self.split(fi, &plane, &mut front, &mut back, &mut bsp.stats),
+                            Side::Straddle => self.split(item.face, &plane, &mut front, &mut back, &mut bsp.stats),
                         }
                     }
                 }
                 Cut::Face { owner, .. } => {
-                    for &fi in &list {
+                    for &item in &list {
                         // The face whose plane this is lies in it, whatever rounding says.
-                        let side = if fi == owner { Side::On } else { self.side(fi, &plane) };
+                        let side = if item.face == owner { Side::On } else { self.side(item.face, &plane) };
                         match side {
-                            Side::Front => front.push(fi),
-                            Side::Back => back.push(fi),
-                            Side::On => on.push(fi),
-                            Side::Straddle => self.split(fi, &plane, &mut front, &mut back, &mut bsp.stats),
+                            Side::Front => front.push(item),
+                            Side::Back => back.push(item),
+                            Side::On => on.push(item.face),
+                            Side::Straddle => self.split(item.face, &plane, &mut front, &mut back, &mut bsp.stats),
                         }
                     }
                 }
@@ -627,10 +632,10 @@ impl Builder {
     }
 
     /// [`Builder::side`] for a free plane along `axis`, from the face's extent (the
-    /// same answer: see [`Builder`]).
+    /// same answer: see [`Item`]).
     #[inline]
-    fn free_side(&self, fi: u32, axis: usize, plane: &Plane) -> Side {
-        let [lo, hi] = self.extents[axis][fi as usize];
+    fn free_side(&self, item: &Item, axis: usize, plane: &Plane) -> Side {
+        let [lo, hi] = item.extents[axis];
         match (hi - plane.d > self.eps, lo - plane.d < -self.eps) {
             (true, true) => Side::Straddle,
             (true, false) => Side::Front,
@@ -647,15 +652,15 @@ impl Builder {
 
     /// Whether a free plane leaves faces on both sides (or cuts one), so that the
     /// recursion makes progress.
-    fn separates(&self, list: &[u32], axis: usize, plane: &Plane) -> bool {
+    fn separates(&self, list: &[Item], axis: usize, plane: &Plane) -> bool {
         let (mut f, mut b) = (false, false);
-        for &fi in list {
-            match self.free_side(fi, axis, plane) {
+        for item in list {
+            match self.free_side(item, axis, plane) {
                 Side::Straddle => return true,
                 Side::Front => f = true,
                 Side::Back => b = true,
                 Side::On => {
-                    if self.faces_front(fi, plane) {
+                    if self.faces_front(item.face, plane) {
                         f = true
                     } else {
                         b = true
@@ -670,9 +675,9 @@ impl Builder {
     }
 
     /// Picks the plane for a node; only face planes when `faces_only`.
-    fn choose_plane(&self, list: &[u32], faces_only: bool, scratch: &mut Scratch) -> Cut {
+    fn choose_plane(&self, list: &[Item], faces_only: bool, scratch: &mut Scratch) -> Cut {
         let step = (list.len() / COST_SAMPLE).max(1);
-        let sample: &[u32] = if step == 1 {
+        let sample: &[Item] = if step == 1 {
             list
         } else {
             scratch.sample.clear();
@@ -689,7 +694,7 @@ impl Builder {
             for axis in 0..3 {
                 let cents = &mut scratch.centroids;
                 cents.clear();
-                cents.extend(sample.iter().map(|&fi| self.centroids[axis][fi as usize]));
+                cents.extend(sample.iter().map(|item| item.centroid[axis]));
                 let mid = cents.len() / 2;
                 let (_, &mut median, _) = cents.select_nth_unstable_by(mid, f64::total_cmp);
                 let (below, above) = self.nearest_coordinates(sample, axis, median);
@@ -716,7 +721,7 @@ impl Builder {
         // Face planes of a few spread-out faces.
         let candidates = 8.min(list.len());
         for k in 0..candidates {
-            let owner = list[k * list.len() / candidates];
+            let owner = list[k * list.len() / candidates].face;
             let plane = self.faces[owner as usize].plane;
             let cost = self.face_cost(sample, &plane);
             consider(cost, Cut::Face { plane, owner }, &mut best);
@@ -728,10 +733,10 @@ impl Builder {
     /// or below it and at or above it (`f64::MIN`, `f64::MAX` when there is none;
     /// of equal ones the first met, face by face, vertex by vertex). A face wholly
     /// on one side gives its extent's end (the first of its equal vertices too).
-    fn nearest_coordinates(&self, sample: &[u32], axis: usize, median: f64) -> (f64, f64) {
+    fn nearest_coordinates(&self, sample: &[Item], axis: usize, median: f64) -> (f64, f64) {
         let (mut below, mut above) = (f64::MIN, f64::MAX);
-        for &fi in sample {
-            let [lo, hi] = self.extents[axis][fi as usize];
+        for item in sample {
+            let [lo, hi] = item.extents[axis];
             if hi < median {
                 if hi > below {
                     below = hi;
@@ -741,7 +746,7 @@ impl Builder {
                     above = lo;
                 }
             } else {
-                let [start, end] = self.spans[fi as usize];
+                let [start, end] = self.spans[item.face as usize];
                 for p in &self.positions[start as usize..end as usize] {
                     let c = p[axis];
                     if c <= median && c > below {
@@ -758,15 +763,15 @@ impl Builder {
 
     /// Cost of a free plane over a sample of faces; `None` if it leaves one side
     /// empty (it would not make progress).
-    fn free_cost(&self, sample: &[u32], axis: usize, plane: &Plane) -> Option<i64> {
+    fn free_cost(&self, sample: &[Item], axis: usize, plane: &Plane) -> Option<i64> {
         let (mut f, mut b, mut s) = (0i64, 0i64, 0i64);
-        for &fi in sample {
-            match self.free_side(fi, axis, plane) {
+        for item in sample {
+            match self.free_side(item, axis, plane) {
                 Side::Front => f += 1,
                 Side::Back => b += 1,
                 Side::Straddle => s += 1,
                 Side::On => {
-                    if self.faces_front(fi, plane) {
+                    if self.faces_front(item.face, plane) {
                         f += 1
                     } else {
                         b += 1
@@ -781,10 +786,10 @@ impl Builder {
     }
 
     /// Cost of a face plane over a sample of faces (those lying in it cost nothing).
-    fn face_cost(&self, sample: &[u32], plane: &Plane) -> i64 {
+    fn face_cost(&self, sample: &[Item], plane: &Plane) -> i64 {
         let (mut f, mut b, mut s) = (0i64, 0i64, 0i64);
-        for &fi in sample {
-            match self.side(fi, plane) {
+        for item in sample {
+            match self.side(item.face, plane) {
                 Side::Front => f += 1,
                 Side::Back => b += 1,
                 Side::Straddle => s += 1,
@@ -796,12 +801,11 @@ impl Builder {
 
     /// Splits face `fi` by `plane` and counts the split: the front piece replaces it,
     /// the back piece is appended, and each goes to its list (a sliver below
-    /// rounding may vanish; none does, as a straddling face has a vertex beyond `eps`
-    /// on either side).
-    fn split(&mut self, fi: u32, plane: &Plane, front: &mut Vec<u32>, back: &mut Vec<u32>, stats: &mut BspStats) {
+    /// rounding could vanish; none does, as a straddling face has a vertex beyond
+    /// `eps` on either side).
+    fn split(&mut self, fi: u32, plane: &Plane, front: &mut Vec<Item>, back: &mut Vec<Item>, stats: &mut BspStats) {
         stats.splits += 1;
-        let face = &self.faces[fi as usize];
-        let (fv, bv) = split_polygon(&face.vertices, plane, self.eps);
+        let (fv, bv) = split_polygon(&self.faces[fi as usize].vertices, plane, self.eps);
         let mut front_used = false;
         for (verts, is_front) in [(fv, true), (bv, false)] {
             if verts.len() < 3 {
@@ -811,7 +815,7 @@ impl Builder {
                 front_used = true;
                 let [start, end] = self.spans[fi as usize];
                 if verts.len() == (end - start) as usize {
-                    // Same count: the positions in place.
+                    // As many vertices: their positions in place.
                     for (p, v) in self.positions[start as usize..end as usize].iter_mut().zip(&verts) {
                         *p = v.position;
                     }
@@ -820,23 +824,21 @@ impl Builder {
                     self.positions.extend(verts.iter().map(|v| v.position));
                     self.spans[fi as usize] = [start, self.positions.len() as u32];
                 }
-                let c = centroid(&verts);
-                for axis in 0..3 {
-                    self.extents[axis][fi as usize] = extent(&verts, axis);
-                    self.centroids[axis][fi as usize] = c[axis];
-                }
                 self.faces[fi as usize].vertices = verts;
                 fi
             } else {
-                self.push_copies(&verts);
+                let start = self.positions.len() as u32;
+                self.positions.extend(verts.iter().map(|v| v.position));
+                self.spans.push([start, self.positions.len() as u32]);
                 let &BspFace { plane, material, instance, face, .. } = &self.faces[fi as usize];
                 self.faces.push(BspFace { vertices: verts, plane, material, instance, face });
                 (self.faces.len() - 1) as u32
             };
+            let item = Item::of(idx, &self.faces[idx as usize].vertices);
             if is_front {
-                front.push(idx);
+                front.push(item);
             } else {
-                back.push(idx);
+                back.push(item);
             }
         }
     }
@@ -845,7 +847,7 @@ impl Builder {
 /// [`Builder::choose_plane`]'s working space, kept from node to node.
 #[derive(Default)]
 struct Scratch {
-    sample: Vec<u32>,
+    sample: Vec<Item>,
     centroids: Vec<f64>,
 }
 
