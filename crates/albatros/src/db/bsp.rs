@@ -482,11 +482,7 @@ fn extent(vs: &[BspVertex], axis: usize) -> [f64; 2] {
 impl Item {
     /// The item of face number `face`, whose vertices are `vs`.
     fn of(face: u32, vs: &[BspVertex]) -> Self {
-        Item {
-            extents: std::array::from_fn(|axis| extent(vs, axis)),
-            centroid: centroid(vs).to_array(),
-            face,
-        }
+        Item { extents: std::array::from_fn(|axis| extent(vs, axis)), centroid: centroid(vs).to_array(), face }
     }
 }
 
