@@ -455,6 +455,9 @@ struct Item {
     extents: [[f64; 2]; 3],
     /// The centroid ([`centroid`]).
     centroid: [f64; 3],
+    /// The face's plane (a candidate of a small node's, and the side a face lying
+    /// in a free plane goes to).
+    plane: Plane,
     /// The face: an index into [`Builder::faces`].
     face: u32,
 }
@@ -481,10 +484,22 @@ fn extent(vs: &[BspVertex], axis: usize) -> [f64; 2] {
     [lo, hi]
 }
 
+/// Whether a face lying in a free plane faces its front.
+#[inline]
+fn faces_front(item: &Item, plane: &Plane) -> bool {
+    item.plane.normal.dot(plane.normal) >= 0.0
+}
+
 impl Item {
-    /// The item of face number `face`, whose vertices are `vs`.
-    fn of(face: u32, vs: &[BspVertex]) -> Self {
-        Item { extents: std::array::from_fn(|axis| extent(vs, axis)), centroid: centroid(vs).to_array(), face }
+    /// The item of face number `face`.
+    fn of(face: u32, f: &BspFace) -> Self {
+        let vs = &f.vertices;
+        Item {
+            extents: std::array::from_fn(|axis| extent(vs, axis)),
+            centroid: centroid(vs).to_array(),
+            plane: f.plane,
+            face,
+        }
     }
 }
 
@@ -493,8 +508,8 @@ impl Item {
 /// as [`Plane::distance`] does, from [`Builder::positions`]).
 ///
 /// **Invariant**: for every face `f`, `positions[spans[f]]` are the positions of
-/// `faces[f].vertices`, and every [`Item`] of face `f` is `Item::of(f,
-/// &faces[f].vertices)` (both kept so at every split).
+/// `faces[f].vertices`, and every [`Item`] of face `f` is `Item::of(f, &faces[f])`
+/// (both kept so at every split).
 struct Builder {
     /// The faces; a split's front piece replaces its face, the back piece is appended.
     faces: Vec<BspFace>,
@@ -545,8 +560,7 @@ impl Builder {
             start: usize,
             depth: usize,
         }
-        let mut items: Vec<Item> =
-            self.faces.iter().enumerate().map(|(fi, f)| Item::of(fi as u32, &f.vertices)).collect();
+        let mut items: Vec<Item> = self.faces.iter().enumerate().map(|(fi, f)| Item::of(fi as u32, f)).collect();
         let mut on: Vec<u32> = Vec::new();
         let mut stack = vec![Work { link: None, start: 0, depth: 1 }];
         let mut scratch = Scratch::default();
@@ -581,7 +595,7 @@ impl Builder {
                 let side = match cut {
                     Cut::Free { axis, .. } => match self.free_side(&item, axis, &plane) {
                         // A free plane: the face goes where its normal points.
-                        Side::On if self.faces_front(item.face, &plane) => Side::Front,
+                        Side::On if faces_front(&item, &plane) => Side::Front,
                         Side::On => Side::Back,
                         side => side,
                     },
@@ -658,12 +672,6 @@ impl Builder {
         }
     }
 
-    /// Whether face `fi`, lying in a free plane, faces its front.
-    #[inline]
-    fn faces_front(&self, fi: u32, plane: &Plane) -> bool {
-        self.faces[fi as usize].plane.normal.dot(plane.normal) >= 0.0
-    }
-
     /// Whether a free plane leaves faces on both sides (or cuts one), so that the
     /// recursion makes progress.
     fn separates(&self, list: &[Item], axis: usize, plane: &Plane) -> bool {
@@ -674,7 +682,7 @@ impl Builder {
                 Side::Front => f = true,
                 Side::Back => b = true,
                 Side::On => {
-                    if self.faces_front(item.face, plane) {
+                    if faces_front(item, plane) {
                         f = true
                     } else {
                         b = true
@@ -736,7 +744,7 @@ impl Builder {
         let candidates = 8.min(list.len());
         for k in 0..candidates {
             let owner = list[k * list.len() / candidates].face;
-            let plane = self.faces[owner as usize].plane;
+            let plane = list[k * list.len() / candidates].plane;
             let cost = self.face_cost(sample, &plane);
             consider(cost, Cut::Face { plane, owner }, &mut best);
         }
@@ -785,7 +793,7 @@ impl Builder {
                 Side::Back => b += 1,
                 Side::Straddle => s += 1,
                 Side::On => {
-                    if self.faces_front(item.face, plane) {
+                    if faces_front(item, plane) {
                         f += 1
                     } else {
                         b += 1
@@ -847,7 +855,7 @@ impl Builder {
                 self.faces.push(BspFace { vertices: verts, plane, material, instance, face });
                 (self.faces.len() - 1) as u32
             };
-            let item = Some(Item::of(idx, &self.faces[idx as usize].vertices));
+            let item = Some(Item::of(idx, &self.faces[idx as usize]));
             if is_front {
                 out.0 = item;
             } else {
