@@ -16,6 +16,17 @@
 //! A face lying in a free plane goes to the side its normal points to: from that side
 //! it can hide only what lies behind the plane.
 //!
+//! The builder (`Builder`) works on a copy of each face's numbers rather than on the
+//! faces: the nodes still to build keep their lists of faces one after the other in
+//! one array (a work stack, the next node's list at its end), each entry (`Item`)
+//! carrying its face's extent along each axis, centroid and plane, so that the
+//! tests of the free planes, which are most of the work, read the list in sequence
+//! and two numbers a face (a face is in front of `x = d` exactly when its greatest
+//! `x` is), and nothing is allocated per node. A face plane's test still computes
+//! every vertex's distance, from one array of the faces' positions. The tree is the
+//! one the plain builder made (each face's vertices read at every test, a list per
+//! node), number for number: the tests check it against that builder.
+//!
 //! # Traversal
 //! At every node the eye's side is visited first, then the node's own faces, then the
 //! far side (Fuchs, Kedem and Naylor's classic order). Moving models are not in the
