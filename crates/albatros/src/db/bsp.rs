@@ -16,6 +16,17 @@
 //! A face lying in a free plane goes to the side its normal points to: from that side
 //! it can hide only what lies behind the plane.
 //!
+//! The builder (`Builder`) works on a copy of each face's numbers rather than on the
+//! faces: the nodes still to build keep their lists of faces one after the other in
+//! one array (a work stack, the next node's list at its end), each entry (`Item`)
+//! carrying its face's extent along each axis, centroid and plane, so that the
+//! tests of the free planes, which are most of the work, read the list in sequence
+//! and two numbers a face (a face is in front of `x = d` exactly when its greatest
+//! `x` is), and nothing is allocated per node. A face plane's test still computes
+//! every vertex's distance, from one array of the faces' positions. The tree is the
+//! one the plain builder made (each face's vertices read at every test, a list per
+//! node), number for number: the tests check it against that builder.
+//!
 //! # Traversal
 //! At every node the eye's side is visited first, then the node's own faces, then the
 //! far side (Fuchs, Kedem and Naylor's classic order). Moving models are not in the
@@ -215,84 +226,15 @@ impl Bsp {
     /// Builds the tree over `faces` (each convex, planar, non-degenerate).
     pub fn build(faces: Vec<BspFace>) -> Self {
         let input = faces.len();
-        let extent =
-            faces.iter().flat_map(|f| f.vertices.iter()).fold(1.0f64, |m, v| m.max(v.position.abs().max_element()));
-        let mut bsp = Bsp { eps: extent * PLANE_EPS, faces, ..Bsp::default() };
+        let builder = Builder::new(faces);
+        let mut bsp = Bsp { eps: builder.eps, ..Bsp::default() };
         bsp.stats.input_faces = input;
-        if bsp.faces.is_empty() {
+        if builder.faces.is_empty() {
+            bsp.faces = builder.faces;
             return bsp;
         }
-        // Work stack of nodes to build.
-        struct Work {
-            /// The parent and whether this is its front child.
-            link: Option<(u32, bool)>,
-            /// The faces in this node's region.
-            list: Vec<u32>,
-            depth: usize,
-        }
-        let all: Vec<u32> = (0..bsp.faces.len() as u32).collect();
-        // Each node's faces while building (numbered as built; renumbered at the end).
-        let mut node_faces: Vec<Vec<u32>> = Vec::new();
-        let mut stack = vec![Work { link: None, list: all, depth: 1 }];
-        while let Some(Work { link, list, depth }) = stack.pop() {
-            let node = bsp.nodes.len() as u32;
-            if let Some((parent, front)) = link {
-                let p = &mut bsp.nodes[parent as usize];
-                if front {
-                    p.front = node;
-                } else {
-                    p.back = node;
-                }
-            }
-            bsp.stats.depth = bsp.stats.depth.max(depth);
-            let (mut plane, mut owner) = bsp.choose_plane(&list, false);
-            if owner.is_none() && !bsp.separates(&list, &plane) {
-                // The sample promised progress the whole list does not give.
-                (plane, owner) = bsp.choose_plane(&list, true);
-            }
-            let axis = owner.is_none();
-            if axis {
-                bsp.stats.axis_nodes += 1;
-            }
-            let mut on = Vec::new();
-            let mut front = Vec::new();
-            let mut back = Vec::new();
-            for &fi in &list {
-                // The face whose plane this is lies in it, whatever rounding says.
-                let side = if Some(fi) == owner { Side::On } else { bsp.side(fi, &plane) };
-                match side {
-                    Side::Front => front.push(fi),
-                    Side::Back => back.push(fi),
-                    Side::On => {
-                        if axis {
-                            // A free plane: the face goes where its normal points.
-                            if bsp.faces[fi as usize].plane.normal.dot(plane.normal) >= 0.0 {
-                                front.push(fi)
-                            } else {
-                                back.push(fi)
-                            }
-                        } else {
-                            on.push(fi)
-                        }
-                    }
-                    Side::Straddle => {
-                        let (f, b) = bsp.split(fi, &plane);
-                        bsp.stats.splits += 1;
-                        front.extend(f);
-                        back.extend(b);
-                    }
-                }
-            }
-            bsp.nodes.push(BspNode { plane, front: NONE, back: NONE, faces: 0..0 });
-            node_faces.push(on);
-            if !back.is_empty() {
-                stack.push(Work { link: Some((node, false)), list: back, depth: depth + 1 });
-            }
-            if !front.is_empty() {
-                stack.push(Work { link: Some((node, true)), list: front, depth: depth + 1 });
-            }
-        }
-        bsp.renumber_faces(node_faces);
+        let on = builder.grow(&mut bsp);
+        bsp.renumber_faces(on);
         bsp.stats.nodes = bsp.nodes.len();
         bsp.stats.faces = bsp.faces.len();
         bsp.make_records();
@@ -468,23 +410,252 @@ impl Bsp {
     /// Numbers the faces in node order, so that each node's faces are a range and the
     /// faces of nearby nodes lie together in memory for the traversal and the GP (a
     /// pure renumbering: the tree and its order are unchanged). A face that no node
-    /// holds (none is expected) keeps a place after the others.
-    fn renumber_faces(&mut self, node_faces: Vec<Vec<u32>>) {
+    /// holds (none is expected) keeps a place after the others. On entry each
+    /// node's `faces` is its range of `on` ([`Builder::grow`]).
+    fn renumber_faces(&mut self, on: Vec<u32>) {
         let mut old: Vec<Option<BspFace>> = std::mem::take(&mut self.faces).into_iter().map(Some).collect();
         let mut faces = Vec::with_capacity(old.len());
-        for (node, list) in self.nodes.iter_mut().zip(node_faces) {
+        for node in &mut self.nodes {
             let start = faces.len() as u32;
-            faces.extend(list.into_iter().filter_map(|f| old[f as usize].take()));
+            let list = &on[node.faces.start as usize..node.faces.end as usize];
+            faces.extend(list.iter().filter_map(|&f| old[f as usize].take()));
             node.faces = start..faces.len() as u32;
         }
         faces.extend(old.into_iter().flatten());
         self.faces = faces;
     }
+}
 
+/// A node's plane as [`Builder::choose_plane`] picks it.
+#[derive(Clone, Copy, Debug)]
+enum Cut {
+    /// A free axis-aligned plane (`normal` the unit vector of `axis`).
+    Free { plane: Plane, axis: usize },
+    /// The plane of face `owner`.
+    Face { plane: Plane, owner: u32 },
+}
+
+impl Cut {
+    fn plane(&self) -> Plane {
+        match *self {
+            Cut::Free { plane, .. } | Cut::Face { plane, .. } => plane,
+        }
+    }
+}
+
+/// A face in a node's list while the tree is built: its number in
+/// [`Builder::faces`] and the numbers of it that the free planes' tests read.
+///
+/// Why a copy in the list: a node tries up to 9 free planes over a sample of up to
+/// [`COST_SAMPLE`] faces, then sorts all its faces. The faces of a node are scattered
+/// over the whole face array (after a few splits of a million random triangles,
+/// anything goes), so reading each face's vertices from its own heap block (or
+/// anything indexed by face) was a cache miss per face per test: on `many`, a
+/// million triangles, 13 s of its start. The lists carry what the tests read and are
+/// read in sequence.
+///
+/// A free plane `normal = e_axis` gives each vertex the distance `p[axis] - d`
+/// exactly (the dot product is `p.x * n.x + p.y * n.y + p.z * n.z`, no fused
+/// multiply-add, the zero terms adding only a signed zero), and `p - d` is monotone
+/// in `p`: a face has a vertex more than `eps` in front of the plane exactly when its
+/// greatest coordinate does, and one behind exactly when its least does. So a free
+/// plane's test reads two numbers of the item ([`Builder::free_side`]).
+#[derive(Clone, Copy, Debug)]
+struct Item {
+    /// Per axis: the least and greatest vertex coordinate ([`extent`]).
+    extents: [[f64; 2]; 3],
+    /// The centroid ([`centroid`]).
+    centroid: [f64; 3],
+    /// The face's plane (a candidate of a small node's, and the side a face lying
+    /// in a free plane goes to).
+    plane: Plane,
+    /// The face: an index into [`Builder::faces`].
+    face: u32,
+}
+
+/// The centroid of a face's vertices.
+fn centroid(vs: &[BspVertex]) -> DVec3 {
+    vs.iter().map(|v| v.position).sum::<DVec3>() / vs.len() as f64
+}
+
+/// The least and greatest coordinate along `axis` of a face's vertices (of equal
+/// ones, the first: strict comparisons in vertex order).
+fn extent(vs: &[BspVertex], axis: usize) -> [f64; 2] {
+    let first = vs[0].position[axis];
+    let (mut lo, mut hi) = (first, first);
+    for v in &vs[1..] {
+        let x = v.position[axis];
+        if x < lo {
+            lo = x;
+        }
+        if x > hi {
+            hi = x;
+        }
+    }
+    [lo, hi]
+}
+
+/// Whether a face lying in a free plane faces its front.
+#[inline]
+fn faces_front(item: &Item, plane: &Plane) -> bool {
+    item.plane.normal.dot(plane.normal) >= 0.0
+}
+
+impl Item {
+    /// The item of face number `face`.
+    fn of(face: u32, f: &BspFace) -> Self {
+        let vs = &f.vertices;
+        Item {
+            extents: std::array::from_fn(|axis| extent(vs, axis)),
+            centroid: centroid(vs).to_array(),
+            plane: f.plane,
+            face,
+        }
+    }
+}
+
+/// The tree's builder: the faces (split ones included) and their vertex positions
+/// in one array, in face order (a face plane's test computes every vertex's distance
+/// as [`Plane::distance`] does, from [`Builder::positions`]).
+///
+/// **Invariant**: for every face `f`, `positions[spans[f]]` are the positions of
+/// `faces[f].vertices`, and every [`Item`] of face `f` is `Item::of(f, &faces[f])`
+/// (both kept so at every split).
+struct Builder {
+    /// The faces; a split's front piece replaces its face, the back piece is appended.
+    faces: Vec<BspFace>,
+    /// Per face: its vertices' positions, `positions[start..end]`.
+    spans: Vec<[u32; 2]>,
+    /// The faces' vertex positions.
+    positions: Vec<DVec3>,
+    /// [`Bsp::eps`].
+    eps: f64,
+}
+
+impl Builder {
+    /// Takes the faces and copies their positions; `eps` from the scene's extent.
+    fn new(faces: Vec<BspFace>) -> Self {
+        let vertices: usize = faces.iter().map(|f| f.vertices.len()).sum();
+        let mut spans = Vec::with_capacity(faces.len());
+        let mut positions = Vec::with_capacity(vertices);
+        let mut extent = 1.0f64;
+        for f in &faces {
+            let start = positions.len() as u32;
+            for v in &f.vertices {
+                extent = extent.max(v.position.abs().max_element());
+                positions.push(v.position);
+            }
+            spans.push([start, positions.len() as u32]);
+        }
+        Builder { faces, spans, positions, eps: extent * PLANE_EPS }
+    }
+
+    /// Builds the nodes into `bsp` (depth first, front child first) and returns the
+    /// faces lying in the nodes' planes, node after node (numbered as in
+    /// [`Builder::faces`], which it leaves in `bsp`); each node's `faces` is, until
+    /// [`Bsp::renumber_faces`], its range of that list.
+    ///
+    /// The lists of the nodes still to build lie one after the other in one array,
+    /// in the order of the work stack: the top's list, the next node to build, is
+    /// the array's end. A node's list is sorted in place into its back child's list
+    /// and, after it, its front child's (the top, built first), so that building
+    /// allocates nothing per node (on `many`, the million lists' allocations and
+    /// fresh pages were a second).
+    fn grow(mut self, bsp: &mut Bsp) -> Vec<u32> {
+        // Work stack of nodes to build.
+        struct Work {
+            /// The parent and whether this is its front child.
+            link: Option<(u32, bool)>,
+            /// Where the faces in this node's region start in `items` (they end
+            /// where the next work's start, the top's at the end).
+            start: usize,
+            depth: usize,
+        }
+        let mut items: Vec<Item> = self.faces.iter().enumerate().map(|(fi, f)| Item::of(fi as u32, f)).collect();
+        let mut on: Vec<u32> = Vec::new();
+        let mut stack = vec![Work { link: None, start: 0, depth: 1 }];
+        let mut scratch = Scratch::default();
+        while let Some(Work { link, start, depth }) = stack.pop() {
+            let node = bsp.nodes.len() as u32;
+            if let Some((parent, front)) = link {
+                let p = &mut bsp.nodes[parent as usize];
+                if front {
+                    p.front = node;
+                } else {
+                    p.back = node;
+                }
+            }
+            bsp.stats.depth = bsp.stats.depth.max(depth);
+            let list = &items[start..];
+            let mut cut = self.choose_plane(list, false, &mut scratch);
+            if let Cut::Free { plane, axis } = cut {
+                if !self.separates(list, axis, &plane) {
+                    // The sample promised progress the whole list does not give.
+                    cut = self.choose_plane(list, true, &mut scratch);
+                }
+            }
+            let plane = cut.plane();
+            let on_start = on.len() as u32;
+            // The back list is written over the node's own from its start (at most
+            // one back face per face read), the front list set aside.
+            let front = &mut scratch.front;
+            front.clear();
+            let mut back = start;
+            for r in start..items.len() {
+                let item = items[r];
+                let side = match cut {
+                    Cut::Free { axis, .. } => match self.free_side(&item, axis, &plane) {
+                        // A free plane: the face goes where its normal points.
+                        Side::On if faces_front(&item, &plane) => Side::Front,
+                        Side::On => Side::Back,
+                        side => side,
+                    },
+                    // The face whose plane this is lies in it, whatever rounding says.
+                    Cut::Face { owner, .. } if item.face == owner => Side::On,
+                    Cut::Face { .. } => self.side(item.face, &plane),
+                };
+                let (f, b) = match side {
+                    Side::Front => (Some(item), None),
+                    Side::Back => (None, Some(item)),
+                    Side::On => {
+                        on.push(item.face);
+                        (None, None)
+                    }
+                    Side::Straddle => {
+                        bsp.stats.splits += 1;
+                        self.split(item.face, &plane)
+                    }
+                };
+                front.extend(f);
+                if let Some(b) = b {
+                    items[back] = b;
+                    back += 1;
+                }
+            }
+            items.truncate(back);
+            items.extend_from_slice(front);
+            if matches!(cut, Cut::Free { .. }) {
+                bsp.stats.axis_nodes += 1;
+            }
+            bsp.nodes.push(BspNode { plane, front: NONE, back: NONE, faces: on_start..on.len() as u32 });
+            if back > start {
+                stack.push(Work { link: Some((node, false)), start, depth: depth + 1 });
+            }
+            if items.len() > back {
+                stack.push(Work { link: Some((node, true)), start: back, depth: depth + 1 });
+            }
+        }
+        bsp.faces = self.faces;
+        on
+    }
+
+    /// Which side of a face plane face `fi` lies on: every vertex's distance.
+    #[inline]
     fn side(&self, fi: u32, plane: &Plane) -> Side {
+        let [start, end] = self.spans[fi as usize];
         let (mut f, mut b) = (false, false);
-        for v in &self.faces[fi as usize].vertices {
-            let d = plane.distance(v.position);
+        for &p in &self.positions[start as usize..end as usize] {
+            let d = plane.distance(p);
             if d > self.eps {
                 f = true;
             } else if d < -self.eps {
@@ -499,17 +670,30 @@ impl Bsp {
         }
     }
 
+    /// [`Builder::side`] for a free plane along `axis`, from the face's extent (the
+    /// same answer: see [`Item`]).
+    #[inline]
+    fn free_side(&self, item: &Item, axis: usize, plane: &Plane) -> Side {
+        let [lo, hi] = item.extents[axis];
+        match (hi - plane.d > self.eps, lo - plane.d < -self.eps) {
+            (true, true) => Side::Straddle,
+            (true, false) => Side::Front,
+            (false, true) => Side::Back,
+            (false, false) => Side::On,
+        }
+    }
+
     /// Whether a free plane leaves faces on both sides (or cuts one), so that the
     /// recursion makes progress.
-    fn separates(&self, list: &[u32], plane: &Plane) -> bool {
+    fn separates(&self, list: &[Item], axis: usize, plane: &Plane) -> bool {
         let (mut f, mut b) = (false, false);
-        for &fi in list {
-            match self.side(fi, plane) {
+        for item in list {
+            match self.free_side(item, axis, plane) {
                 Side::Straddle => return true,
                 Side::Front => f = true,
                 Side::Back => b = true,
                 Side::On => {
-                    if self.faces[fi as usize].plane.normal.dot(plane.normal) >= 0.0 {
+                    if faces_front(item, plane) {
                         f = true
                     } else {
                         b = true
@@ -523,35 +707,30 @@ impl Bsp {
         false
     }
 
-    /// Picks the plane for a node: `(plane, the face whose plane it is)`, `None` for a
-    /// free axis-aligned plane; only face planes when `faces_only`.
-    fn choose_plane(&self, list: &[u32], faces_only: bool) -> (Plane, Option<u32>) {
+    /// Picks the plane for a node; only face planes when `faces_only`.
+    fn choose_plane(&self, list: &[Item], faces_only: bool, scratch: &mut Scratch) -> Cut {
         let step = (list.len() / COST_SAMPLE).max(1);
-        let sample: Vec<u32> = list.iter().step_by(step).copied().collect();
-        let mut best: Option<(i64, Plane, Option<u32>)> = None;
-        let consider = |cost: i64, plane: Plane, owner: Option<u32>, best: &mut Option<(i64, Plane, Option<u32>)>| {
+        let sample: &[Item] = if step == 1 {
+            list
+        } else {
+            scratch.sample.clear();
+            scratch.sample.extend(list.iter().step_by(step));
+            &scratch.sample
+        };
+        let mut best: Option<(i64, Cut)> = None;
+        let consider = |cost: i64, cut: Cut, best: &mut Option<(i64, Cut)>| {
             if best.as_ref().is_none_or(|b| cost < b.0) {
-                *best = Some((cost, plane, owner));
+                *best = Some((cost, cut));
             }
         };
         if list.len() > AUTO_PARTITION_AT && !faces_only {
             for axis in 0..3 {
-                let mut cents: Vec<f64> = sample.iter().map(|&fi| self.centroid(fi)[axis]).collect();
+                let cents = &mut scratch.centroids;
+                cents.clear();
+                cents.extend(sample.iter().map(|item| item.centroid[axis]));
                 let mid = cents.len() / 2;
                 let (_, &mut median, _) = cents.select_nth_unstable_by(mid, f64::total_cmp);
-                // Vertex coordinates nearest the median on either side.
-                let (mut below, mut above) = (f64::MIN, f64::MAX);
-                for &fi in &sample {
-                    for v in &self.faces[fi as usize].vertices {
-                        let c = v.position[axis];
-                        if c <= median && c > below {
-                            below = c;
-                        }
-                        if c >= median && c < above {
-                            above = c;
-                        }
-                    }
-                }
+                let (below, above) = self.nearest_coordinates(sample, axis, median);
                 for pos in [median, below, above] {
                     if !pos.is_finite() || pos == f64::MIN || pos == f64::MAX {
                         continue;
@@ -559,92 +738,155 @@ impl Bsp {
                     let mut normal = DVec3::ZERO;
                     normal[axis] = 1.0;
                     let plane = Plane { normal, d: pos };
-                    if let Some(cost) = self.cost(&sample, &plane, true) {
-                        consider(cost, plane, None, &mut best);
+                    if let Some(cost) = self.free_cost(sample, axis, &plane) {
+                        consider(cost, Cut::Free { plane, axis }, &mut best);
                     }
                 }
             }
         }
         // On a large node a free plane is taken when there is one: face planes are
         // for the small nodes (and for when no free plane makes progress).
-        if let Some((_, plane, None)) = best {
+        if let Some((_, cut @ Cut::Free { .. })) = best {
             if list.len() > FACE_PLANES_BELOW {
-                return (plane, None);
+                return cut;
             }
         }
         // Face planes of a few spread-out faces.
         let candidates = 8.min(list.len());
         for k in 0..candidates {
-            let fi = list[k * list.len() / candidates];
-            let plane = self.faces[fi as usize].plane;
-            let cost = self.cost(&sample, &plane, false).unwrap_or(i64::MAX / 2);
-            consider(cost, plane, Some(fi), &mut best);
+            let owner = list[k * list.len() / candidates].face;
+            let plane = list[k * list.len() / candidates].plane;
+            let cost = self.face_cost(sample, &plane);
+            consider(cost, Cut::Face { plane, owner }, &mut best);
         }
-        let (_, plane, owner) = best.expect("a node has at least one face");
-        (plane, owner)
+        best.expect("a node has at least one face").1
     }
 
-    /// Cost of a plane over a sample of faces; `None` if a free plane leaves one side
-    /// empty (it would not make progress).
-    fn cost(&self, sample: &[u32], plane: &Plane, free: bool) -> Option<i64> {
-        let (mut f, mut b, mut s) = (0i64, 0i64, 0i64);
-        for &fi in sample {
-            match self.side(fi, plane) {
-                Side::Front => f += 1,
-                Side::Back => b += 1,
-                Side::Straddle => s += 1,
-                Side::On => {
-                    if free {
-                        if self.faces[fi as usize].plane.normal.dot(plane.normal) >= 0.0 {
-                            f += 1
-                        } else {
-                            b += 1
-                        }
+    /// The vertex coordinates along `axis` of the sample's faces nearest `median` at
+    /// or below it and at or above it (`f64::MIN`, `f64::MAX` when there is none;
+    /// of equal ones the first met, face by face, vertex by vertex). A face wholly
+    /// on one side gives its extent's end (the first of its equal vertices too).
+    fn nearest_coordinates(&self, sample: &[Item], axis: usize, median: f64) -> (f64, f64) {
+        let (mut below, mut above) = (f64::MIN, f64::MAX);
+        for item in sample {
+            let [lo, hi] = item.extents[axis];
+            if hi < median {
+                if hi > below {
+                    below = hi;
+                }
+            } else if lo > median {
+                if lo < above {
+                    above = lo;
+                }
+            } else {
+                let [start, end] = self.spans[item.face as usize];
+                for p in &self.positions[start as usize..end as usize] {
+                    let c = p[axis];
+                    if c <= median && c > below {
+                        below = c;
+                    }
+                    if c >= median && c < above {
+                        above = c;
                     }
                 }
             }
         }
-        if free && (f + s == 0 || b + s == 0) {
+        (below, above)
+    }
+
+    /// Cost of a free plane over a sample of faces; `None` if it leaves one side
+    /// empty (it would not make progress).
+    fn free_cost(&self, sample: &[Item], axis: usize, plane: &Plane) -> Option<i64> {
+        let (mut f, mut b, mut s) = (0i64, 0i64, 0i64);
+        for item in sample {
+            match self.free_side(item, axis, plane) {
+                Side::Front => f += 1,
+                Side::Back => b += 1,
+                Side::Straddle => s += 1,
+                Side::On => {
+                    if faces_front(item, plane) {
+                        f += 1
+                    } else {
+                        b += 1
+                    }
+                }
+            }
+        }
+        if f + s == 0 || b + s == 0 {
             return None;
         }
         Some(s * SPLIT_COST + (f - b).abs())
     }
 
-    fn centroid(&self, fi: u32) -> DVec3 {
-        let vs = &self.faces[fi as usize].vertices;
-        vs.iter().map(|v| v.position).sum::<DVec3>() / vs.len() as f64
+    /// Cost of a face plane over a sample of faces (those lying in it cost nothing).
+    fn face_cost(&self, sample: &[Item], plane: &Plane) -> i64 {
+        let (mut f, mut b, mut s) = (0i64, 0i64, 0i64);
+        for item in sample {
+            match self.side(item.face, plane) {
+                Side::Front => f += 1,
+                Side::Back => b += 1,
+                Side::Straddle => s += 1,
+                Side::On => {}
+            }
+        }
+        s * SPLIT_COST + (f - b).abs()
     }
 
     /// Splits face `fi` by `plane`: the front piece replaces it, the back piece is
-    /// appended. Returns the (front, back) face indices (a sliver below rounding may
-    /// vanish).
-    fn split(&mut self, fi: u32, plane: &Plane) -> (Option<u32>, Option<u32>) {
-        let face = self.faces[fi as usize].clone();
-        let (fv, bv) = split_polygon(&face.vertices, plane, self.eps);
+    /// appended. Returns the pieces' items (a sliver below rounding could vanish;
+    /// none does, as a straddling face has a vertex beyond `eps` on either side).
+    fn split(&mut self, fi: u32, plane: &Plane) -> (Option<Item>, Option<Item>) {
+        let (fv, bv) = split_polygon(&self.faces[fi as usize].vertices, plane, self.eps);
         let mut out = (None, None);
         let mut front_used = false;
         for (verts, is_front) in [(fv, true), (bv, false)] {
             if verts.len() < 3 {
                 continue;
             }
-            let piece = BspFace { vertices: verts, ..face.clone() };
             let idx = if !front_used {
                 front_used = true;
-                self.faces[fi as usize] = piece;
+                let [start, end] = self.spans[fi as usize];
+                if verts.len() == (end - start) as usize {
+                    // As many vertices: their positions in place.
+                    for (p, v) in self.positions[start as usize..end as usize].iter_mut().zip(&verts) {
+                        *p = v.position;
+                    }
+                } else {
+                    let start = self.positions.len() as u32;
+                    self.positions.extend(verts.iter().map(|v| v.position));
+                    self.spans[fi as usize] = [start, self.positions.len() as u32];
+                }
+                self.faces[fi as usize].vertices = verts;
                 fi
             } else {
-                self.faces.push(piece);
+                let start = self.positions.len() as u32;
+                self.positions.extend(verts.iter().map(|v| v.position));
+                self.spans.push([start, self.positions.len() as u32]);
+                let &BspFace { plane, material, instance, face, .. } = &self.faces[fi as usize];
+                self.faces.push(BspFace { vertices: verts, plane, material, instance, face });
                 (self.faces.len() - 1) as u32
             };
+            let item = Some(Item::of(idx, &self.faces[idx as usize]));
             if is_front {
-                out.0 = Some(idx);
+                out.0 = item;
             } else {
-                out.1 = Some(idx);
+                out.1 = item;
             }
         }
         out
     }
+}
 
+/// [`Builder`]'s working space, kept from node to node.
+#[derive(Default)]
+struct Scratch {
+    sample: Vec<Item>,
+    centroids: Vec<f64>,
+    /// A node's front list while it is sorted.
+    front: Vec<Item>,
+}
+
+impl Bsp {
     /// Front-to-back order of the tree's faces for an eye at `eye`: `visit` is called
     /// with [`Visit::Face`] for every face, and with [`Visit::Guests`] at the place
     /// where the moving models attached to `(node, slot)` go (see [`Bsp::attach`]).
@@ -907,4 +1149,449 @@ pub fn polygon_area(vs: &[BspVertex]) -> f64 {
         n += (vs[i].position - p0).cross(vs[i + 1].position - p0);
     }
     n.length() * 0.5
+}
+
+#[cfg(test)]
+mod tests {
+    //! The builder against its definition: the straightforward builder it replaced
+    //! (each face's vertices read at every test, one list per node), kept here.
+    use super::*;
+    use proptest::prelude::*;
+
+    impl Bsp {
+        fn reference_build(faces: Vec<BspFace>) -> Self {
+            let input = faces.len();
+            let extent =
+                faces.iter().flat_map(|f| f.vertices.iter()).fold(1.0f64, |m, v| m.max(v.position.abs().max_element()));
+            let mut bsp = Bsp { eps: extent * PLANE_EPS, faces, ..Bsp::default() };
+            bsp.stats.input_faces = input;
+            if bsp.faces.is_empty() {
+                return bsp;
+            }
+            // Work stack of nodes to build.
+            struct Work {
+                /// The parent and whether this is its front child.
+                link: Option<(u32, bool)>,
+                /// The faces in this node's region.
+                list: Vec<u32>,
+                depth: usize,
+            }
+            let all: Vec<u32> = (0..bsp.faces.len() as u32).collect();
+            // Each node's faces while building (numbered as built; renumbered at the end).
+            let mut node_faces: Vec<Vec<u32>> = Vec::new();
+            let mut stack = vec![Work { link: None, list: all, depth: 1 }];
+            while let Some(Work { link, list, depth }) = stack.pop() {
+                let node = bsp.nodes.len() as u32;
+                if let Some((parent, front)) = link {
+                    let p = &mut bsp.nodes[parent as usize];
+                    if front {
+                        p.front = node;
+                    } else {
+                        p.back = node;
+                    }
+                }
+                bsp.stats.depth = bsp.stats.depth.max(depth);
+                let (mut plane, mut owner) = bsp.reference_choose_plane(&list, false);
+                if owner.is_none() && !bsp.reference_separates(&list, &plane) {
+                    // The sample promised progress the whole list does not give.
+                    (plane, owner) = bsp.reference_choose_plane(&list, true);
+                }
+                let axis = owner.is_none();
+                if axis {
+                    bsp.stats.axis_nodes += 1;
+                }
+                let mut on = Vec::new();
+                let mut front = Vec::new();
+                let mut back = Vec::new();
+                for &fi in &list {
+                    // The face whose plane this is lies in it, whatever rounding says.
+                    let side = if Some(fi) == owner { Side::On } else { bsp.reference_side(fi, &plane) };
+                    match side {
+                        Side::Front => front.push(fi),
+                        Side::Back => back.push(fi),
+                        Side::On => {
+                            if axis {
+                                // A free plane: the face goes where its normal points.
+                                if bsp.faces[fi as usize].plane.normal.dot(plane.normal) >= 0.0 {
+                                    front.push(fi)
+                                } else {
+                                    back.push(fi)
+                                }
+                            } else {
+                                on.push(fi)
+                            }
+                        }
+                        Side::Straddle => {
+                            let (f, b) = bsp.reference_split(fi, &plane);
+                            bsp.stats.splits += 1;
+                            front.extend(f);
+                            back.extend(b);
+                        }
+                    }
+                }
+                bsp.nodes.push(BspNode { plane, front: NONE, back: NONE, faces: 0..0 });
+                node_faces.push(on);
+                if !back.is_empty() {
+                    stack.push(Work { link: Some((node, false)), list: back, depth: depth + 1 });
+                }
+                if !front.is_empty() {
+                    stack.push(Work { link: Some((node, true)), list: front, depth: depth + 1 });
+                }
+            }
+            bsp.reference_renumber_faces(node_faces);
+            bsp.stats.nodes = bsp.nodes.len();
+            bsp.stats.faces = bsp.faces.len();
+            bsp.make_records();
+            bsp
+        }
+
+        /// Numbers the faces in node order, so that each node's faces are a range and the
+        /// faces of nearby nodes lie together in memory for the traversal and the GP (a
+        /// pure renumbering: the tree and its order are unchanged). A face that no node
+        /// holds (none is expected) keeps a place after the others.
+        fn reference_renumber_faces(&mut self, node_faces: Vec<Vec<u32>>) {
+            let mut old: Vec<Option<BspFace>> = std::mem::take(&mut self.faces).into_iter().map(Some).collect();
+            let mut faces = Vec::with_capacity(old.len());
+            for (node, list) in self.nodes.iter_mut().zip(node_faces) {
+                let start = faces.len() as u32;
+                faces.extend(list.into_iter().filter_map(|f| old[f as usize].take()));
+                node.faces = start..faces.len() as u32;
+            }
+            faces.extend(old.into_iter().flatten());
+            self.faces = faces;
+        }
+
+        fn reference_side(&self, fi: u32, plane: &Plane) -> Side {
+            let (mut f, mut b) = (false, false);
+            for v in &self.faces[fi as usize].vertices {
+                let d = plane.distance(v.position);
+                if d > self.eps {
+                    f = true;
+                } else if d < -self.eps {
+                    b = true;
+                }
+            }
+            match (f, b) {
+                (true, true) => Side::Straddle,
+                (true, false) => Side::Front,
+                (false, true) => Side::Back,
+                (false, false) => Side::On,
+            }
+        }
+
+        /// Whether a free plane leaves faces on both sides (or cuts one), so that the
+        /// recursion makes progress.
+        fn reference_separates(&self, list: &[u32], plane: &Plane) -> bool {
+            let (mut f, mut b) = (false, false);
+            for &fi in list {
+                match self.reference_side(fi, plane) {
+                    Side::Straddle => return true,
+                    Side::Front => f = true,
+                    Side::Back => b = true,
+                    Side::On => {
+                        if self.faces[fi as usize].plane.normal.dot(plane.normal) >= 0.0 {
+                            f = true
+                        } else {
+                            b = true
+                        }
+                    }
+                }
+                if f && b {
+                    return true;
+                }
+            }
+            false
+        }
+
+        /// Picks the plane for a node: `(plane, the face whose plane it is)`, `None` for a
+        /// free axis-aligned plane; only face planes when `faces_only`.
+        fn reference_choose_plane(&self, list: &[u32], faces_only: bool) -> (Plane, Option<u32>) {
+            let step = (list.len() / COST_SAMPLE).max(1);
+            let sample: Vec<u32> = list.iter().step_by(step).copied().collect();
+            let mut best: Option<(i64, Plane, Option<u32>)> = None;
+            let consider =
+                |cost: i64, plane: Plane, owner: Option<u32>, best: &mut Option<(i64, Plane, Option<u32>)>| {
+                    if best.as_ref().is_none_or(|b| cost < b.0) {
+                        *best = Some((cost, plane, owner));
+                    }
+                };
+            if list.len() > AUTO_PARTITION_AT && !faces_only {
+                for axis in 0..3 {
+                    let mut cents: Vec<f64> = sample.iter().map(|&fi| self.reference_centroid(fi)[axis]).collect();
+                    let mid = cents.len() / 2;
+                    let (_, &mut median, _) = cents.select_nth_unstable_by(mid, f64::total_cmp);
+                    // Vertex coordinates nearest the median on either side.
+                    let (mut below, mut above) = (f64::MIN, f64::MAX);
+                    for &fi in &sample {
+                        for v in &self.faces[fi as usize].vertices {
+                            let c = v.position[axis];
+                            if c <= median && c > below {
+                                below = c;
+                            }
+                            if c >= median && c < above {
+                                above = c;
+                            }
+                        }
+                    }
+                    for pos in [median, below, above] {
+                        if !pos.is_finite() || pos == f64::MIN || pos == f64::MAX {
+                            continue;
+                        }
+                        let mut normal = DVec3::ZERO;
+                        normal[axis] = 1.0;
+                        let plane = Plane { normal, d: pos };
+                        if let Some(cost) = self.reference_cost(&sample, &plane, true) {
+                            consider(cost, plane, None, &mut best);
+                        }
+                    }
+                }
+            }
+            // On a large node a free plane is taken when there is one: face planes are
+            // for the small nodes (and for when no free plane makes progress).
+            if let Some((_, plane, None)) = best {
+                if list.len() > FACE_PLANES_BELOW {
+                    return (plane, None);
+                }
+            }
+            // Face planes of a few spread-out faces.
+            let candidates = 8.min(list.len());
+            for k in 0..candidates {
+                let fi = list[k * list.len() / candidates];
+                let plane = self.faces[fi as usize].plane;
+                let cost = self.reference_cost(&sample, &plane, false).unwrap_or(i64::MAX / 2);
+                consider(cost, plane, Some(fi), &mut best);
+            }
+            let (_, plane, owner) = best.expect("a node has at least one face");
+            (plane, owner)
+        }
+
+        /// Cost of a plane over a sample of faces; `None` if a free plane leaves one side
+        /// empty (it would not make progress).
+        fn reference_cost(&self, sample: &[u32], plane: &Plane, free: bool) -> Option<i64> {
+            let (mut f, mut b, mut s) = (0i64, 0i64, 0i64);
+            for &fi in sample {
+                match self.reference_side(fi, plane) {
+                    Side::Front => f += 1,
+                    Side::Back => b += 1,
+                    Side::Straddle => s += 1,
+                    Side::On => {
+                        if free {
+                            if self.faces[fi as usize].plane.normal.dot(plane.normal) >= 0.0 {
+                                f += 1
+                            } else {
+                                b += 1
+                            }
+                        }
+                    }
+                }
+            }
+            if free && (f + s == 0 || b + s == 0) {
+                return None;
+            }
+            Some(s * SPLIT_COST + (f - b).abs())
+        }
+
+        fn reference_centroid(&self, fi: u32) -> DVec3 {
+            let vs = &self.faces[fi as usize].vertices;
+            vs.iter().map(|v| v.position).sum::<DVec3>() / vs.len() as f64
+        }
+
+        /// Splits face `fi` by `plane`: the front piece replaces it, the back piece is
+        /// appended. Returns the (front, back) face indices (a sliver below rounding may
+        /// vanish).
+        fn reference_split(&mut self, fi: u32, plane: &Plane) -> (Option<u32>, Option<u32>) {
+            let face = self.faces[fi as usize].clone();
+            let (fv, bv) = split_polygon(&face.vertices, plane, self.eps);
+            let mut out = (None, None);
+            let mut front_used = false;
+            for (verts, is_front) in [(fv, true), (bv, false)] {
+                if verts.len() < 3 {
+                    continue;
+                }
+                let piece = BspFace { vertices: verts, ..face.clone() };
+                let idx = if !front_used {
+                    front_used = true;
+                    self.faces[fi as usize] = piece;
+                    fi
+                } else {
+                    self.faces.push(piece);
+                    (self.faces.len() - 1) as u32
+                };
+                if is_front {
+                    out.0 = Some(idx);
+                } else {
+                    out.1 = Some(idx);
+                }
+            }
+            out
+        }
+    }
+
+    /// A small random number generator for the faces (xorshift64*).
+    struct Rng(u64);
+
+    impl Rng {
+        fn next(&mut self) -> u64 {
+            self.0 ^= self.0 >> 12;
+            self.0 ^= self.0 << 25;
+            self.0 ^= self.0 >> 27;
+            self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+        }
+        fn unit(&mut self) -> f64 {
+            (self.next() >> 11) as f64 / (1u64 << 53) as f64
+        }
+        fn range(&mut self, lo: f64, hi: f64) -> f64 {
+            lo + (hi - lo) * self.unit()
+        }
+        fn below(&mut self, n: usize) -> usize {
+            (self.next() % n as u64) as usize
+        }
+    }
+
+    /// A face over `points` (convex, in order) with its plane as the GP makes it
+    /// (Newell's normal, `d` at the first vertex).
+    fn face_of(points: &[DVec3], k: usize) -> Option<BspFace> {
+        let vertices: Vec<BspVertex> = points
+            .iter()
+            .enumerate()
+            .map(|(i, &p)| BspVertex {
+                position: p,
+                normal: Vec3::new(i as f32, 1.0, 0.5).normalize(),
+                intensity: 0.25 * i as f32,
+            })
+            .collect();
+        let p0 = points[0];
+        let mut n = DVec3::ZERO;
+        for i in 1..points.len() - 1 {
+            n += (points[i] - p0).cross(points[i + 1] - p0);
+        }
+        let len = n.length();
+        (len > 1e-9).then(|| {
+            let normal = n / len;
+            BspFace {
+                plane: Plane { normal, d: normal.dot(p0) },
+                vertices,
+                material: (k % 5) as u32,
+                instance: (k % 3) as u32,
+                face: k as u32,
+            }
+        })
+    }
+
+    /// `n` random convex faces (3 to 6 vertices) in a box of side 20: on planes of
+    /// random orientation, or on axis planes (some shared, so coplanar) with
+    /// coordinates on a grid of `grid` (0: none) and zeros of either sign, many of
+    /// them crossing one another (so split).
+    fn random_faces(seed: u64, n: usize, grid: f64) -> Vec<BspFace> {
+        let mut rng = Rng(seed | 1);
+        let snap = |x: f64, rng: &mut Rng| {
+            let x = if grid > 0.0 { (x / grid).round() * grid } else { x };
+            if x == 0.0 && rng.next() & 1 == 1 {
+                -0.0
+            } else {
+                x
+            }
+        };
+        let mut planes: Vec<(usize, f64)> = Vec::new();
+        let mut faces = Vec::with_capacity(n);
+        let mut k = 0;
+        while faces.len() < n {
+            k += 1;
+            let sides = 3 + rng.below(4);
+            // Smaller faces in larger sets, which split less.
+            let r = rng.range(0.3, if n > 500 { 1.5 } else { 4.0 });
+            let c = DVec3::new(rng.range(-10.0, 10.0), rng.range(-10.0, 10.0), rng.range(-10.0, 10.0));
+            let turn = rng.range(0.0, std::f64::consts::TAU);
+            let angles: Vec<f64> = (0..sides).map(|i| turn + std::f64::consts::TAU * i as f64 / sides as f64).collect();
+            let points: Vec<DVec3> = if rng.below(3) == 0 {
+                // A plane of random orientation.
+                let normal =
+                    DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0)).normalize_or_zero();
+                if normal == DVec3::ZERO {
+                    continue;
+                }
+                let u = normal.any_orthonormal_vector();
+                let v = normal.cross(u);
+                angles.iter().map(|a| c + (u * a.cos() + v * a.sin()) * r).collect()
+            } else {
+                // An axis plane, often one met before.
+                let (axis, at) = if !planes.is_empty() && rng.below(2) == 0 {
+                    planes[rng.below(planes.len())]
+                } else {
+                    let p = (rng.below(3), snap(c[rng.below(3)], &mut rng));
+                    planes.push(p);
+                    p
+                };
+                let flip = rng.below(2) == 0;
+                angles
+                    .iter()
+                    .map(|a| {
+                        let (s, t) = (a.cos() * r, if flip { -a.sin() * r } else { a.sin() * r });
+                        let mut p = DVec3::ZERO;
+                        p[axis] = at;
+                        p[(axis + 1) % 3] = snap(c[(axis + 1) % 3] + s, &mut rng);
+                        p[(axis + 2) % 3] = snap(c[(axis + 2) % 3] + t, &mut rng);
+                        p
+                    })
+                    .collect()
+            };
+            if let Some(f) = face_of(&points, k) {
+                faces.push(f);
+            }
+        }
+        faces
+    }
+
+    /// Where two trees' Debug prints (every number exactly, zeros with their signs)
+    /// first differ, with what is around it; `None` if they are the same to the bit.
+    fn difference(built: &Bsp, reference: &Bsp) -> Option<String> {
+        let (a, b) = (format!("{built:?}"), format!("{reference:?}"));
+        let at = a
+            .bytes()
+            .zip(b.bytes())
+            .position(|(x, y)| x != y)
+            .or((a.len() != b.len()).then_some(a.len().min(b.len())))?;
+        let around = |s: &str| s[at.saturating_sub(300)..(at + 100).min(s.len())].to_string();
+        Some(format!("at byte {at}:\n built     ...{}\n reference ...{}", around(&a), around(&b)))
+    }
+
+    /// The built trees are the same (`==`, and to the bit).
+    fn assert_same(faces: Vec<BspFace>) -> Result<(), TestCaseError> {
+        let reference = Bsp::reference_build(faces.clone());
+        let built = Bsp::build(faces);
+        prop_assert!(built == reference, "trees differ: {:?}", difference(&built, &reference));
+        prop_assert_eq!(difference(&built, &reference), None);
+        Ok(())
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(40))]
+
+        /// The builder builds the tree its definition does, whatever the faces:
+        /// every size class ([`AUTO_PARTITION_AT`], [`FACE_PLANES_BELOW`],
+        /// [`COST_SAMPLE`] sampling), coplanar faces, faces on axis planes, faces
+        /// split.
+        #[test]
+        fn the_builder_builds_the_reference_tree(
+            seed in any::<u64>(),
+            n in prop_oneof![1usize..=AUTO_PARTITION_AT + 2, 10usize..=3 * FACE_PLANES_BELOW, 900usize..2600],
+            grid in prop_oneof![Just(0.0), Just(0.5), Just(2.0)],
+        ) {
+            assert_same(random_faces(seed, n, grid))?;
+        }
+    }
+
+    /// The cases the proptest may miss: no face, one face, and large sets.
+    #[test]
+    fn the_builder_builds_the_reference_tree_on_large_sets() {
+        assert_eq!(Bsp::build(Vec::new()), Bsp::reference_build(Vec::new()));
+        for (seed, n, grid) in [(1, 1, 0.0), (2, 4000, 0.5), (3, 4000, 0.0), (4, 3000, 2.0)] {
+            let faces = random_faces(seed, n, grid);
+            let built = Bsp::build(faces.clone());
+            assert!(built.stats.splits > 0 || n < 2, "no split in case {seed}");
+            let reference = Bsp::reference_build(faces);
+            assert!(built == reference, "case {seed}: {:?}", difference(&built, &reference));
+            assert_eq!(difference(&built, &reference), None, "case {seed}");
+        }
+    }
 }

@@ -552,26 +552,55 @@ fn finite<const N: usize>(what: &str, field: &'static str, values: [f32; N]) -> 
 
 /// Validates one model: see [`Scene::validate`].
 pub fn validate_model(mi: usize, m: &Model, materials: usize) -> Result<(), SceneError> {
+    // The place is named only when something is wrong there: `many` has three
+    // million vertices and a million faces, and formatting a name for each was a
+    // second of its start.
     for (vi, v) in m.vertices.iter().enumerate() {
+        if v.position.is_finite() && v.normal.is_finite() && v.intensity.is_finite() {
+            continue;
+        }
         let what = format!("model '{}' vertex {vi}", m.name);
         finite(&what, "position", v.position.to_array())?;
         finite(&what, "normal", v.normal.to_array())?;
         finite(&what, "intensity", [v.intensity])?;
     }
     let _ = mi;
+    /// Faces with at most this many vertices are checked from a buffer on the stack.
+    const SMALL_FACE: usize = 8;
+    let mut small = [Vec3::ZERO; SMALL_FACE];
     for (fi, f) in m.faces.iter().enumerate() {
-        let what = format!("model '{}' face {fi}", m.name);
+        let what = || format!("model '{}' face {fi}", m.name);
         if f.material as usize >= materials {
-            return Err(SceneError::IndexOutOfRange { what, field: "material", index: f.material, len: materials });
+            return Err(SceneError::IndexOutOfRange {
+                what: what(),
+                field: "material",
+                index: f.material,
+                len: materials,
+            });
         }
         for &i in &f.vertices {
             if i as usize >= m.vertices.len() {
-                return Err(SceneError::IndexOutOfRange { what, field: "vertices", index: i, len: m.vertices.len() });
+                return Err(SceneError::IndexOutOfRange {
+                    what: what(),
+                    field: "vertices",
+                    index: i,
+                    len: m.vertices.len(),
+                });
             }
         }
-        let pts: Vec<Vec3> = f.vertices.iter().map(|&i| m.vertices[i as usize].position).collect();
-        if let Err(problem) = check_convex_planar(&pts) {
-            return Err(SceneError::BadFace { what, problem });
+        let position = |&i: &u32| m.vertices[i as usize].position;
+        let large: Vec<Vec3>;
+        let pts: &[Vec3] = if f.vertices.len() <= SMALL_FACE {
+            for (p, i) in small.iter_mut().zip(&f.vertices) {
+                *p = position(i);
+            }
+            &small[..f.vertices.len()]
+        } else {
+            large = f.vertices.iter().map(position).collect();
+            &large
+        };
+        if let Err(problem) = check_convex_planar(pts) {
+            return Err(SceneError::BadFace { what: what(), problem });
         }
     }
     Ok(())
