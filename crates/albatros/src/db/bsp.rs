@@ -165,6 +165,30 @@ pub struct FaceRecord {
     pub face: u32,
 }
 
+/// A distinct record vertex of a tree whose faces share their vertices
+/// ([`Bsp::record_vertex_ids_of`]): the vertex, and a number shared by every
+/// distinct vertex at its position (bit for bit), by which the GP transforms a
+/// position once ([`crate::gp`]'s vertex cache).
+///
+/// Layout (48 bytes, 8-aligned): `vertex` (bytes 0-39: position `f64` x 3, normal
+/// `f32` x 3, intensity `f32`), `position` (40-43), 4 bytes of padding.
+///
+/// Why: the records' vertices repeat a shared vertex once per face around it (a
+/// terrain grid's about six times: 40 bytes x 3 a triangle, 15.7 MB of `terrain`'s
+/// 131 k triangles), and the GP read each face's copies from memory every frame.
+/// Through the numbers it reads 4 bytes a corner, and a distinct vertex once from
+/// memory for the faces around it (met together in the walk, so from the cache
+/// after the first). Keyed by the whole vertex, not its position alone: the faces
+/// at a position may have their own normals (`city`'s boxes: 39 k positions, 102 k
+/// distinct vertices), and the GP lights each with its own.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SharedVertex {
+    /// The vertex.
+    pub vertex: BspVertex,
+    /// Its position's number (equal numbers: equal positions, bit for bit).
+    pub position: u32,
+}
+
 /// The tree.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Bsp {
@@ -178,10 +202,14 @@ pub struct Bsp {
     pub records: Vec<FaceRecord>,
     /// The records' vertices, in face order.
     pub record_vertices: Vec<BspVertex>,
-    /// Per record vertex: a number shared by every record vertex at the same
-    /// position (bit for bit), when the tree's faces share their vertices enough
-    /// to be worth it ([`VERTEX_SHARING`]), else empty ([`Bsp::record_vertex_ids_of`]).
+    /// Per record vertex: its number in [`Bsp::shared_vertices`] (a number shared
+    /// by every record vertex equal to it bit for bit: position, normal and
+    /// intensity), when the tree's faces share their positions enough to be worth
+    /// it ([`VERTEX_SHARING`]), else empty ([`Bsp::record_vertex_ids_of`]).
     vertex_ids: Vec<u32>,
+    /// The distinct record vertices, in order of first appearance, each with its
+    /// position number ([`SharedVertex`]); empty with [`Bsp::vertex_ids`].
+    shared_vertices: Vec<SharedVertex>,
     /// Build statistics.
     pub stats: BspStats,
     /// Per node: the faces of its subtree (its own and all below it).
@@ -357,26 +385,36 @@ impl Bsp {
             .collect();
     }
 
-    /// Numbers the record vertices by position ([`Bsp::vertex_ids`]), in order of
-    /// first appearance (so the faces of a subtree, which lie together, have their
-    /// numbers close together), or leaves them unnumbered when few positions are
-    /// shared.
+    /// Numbers the record vertices ([`Bsp::vertex_ids`]) and keeps the distinct
+    /// ones ([`Bsp::shared_vertices`]), each with its position's number, all in
+    /// order of first appearance (so the faces of a subtree, which lie together,
+    /// have their numbers and distinct vertices close together), or leaves them
+    /// unnumbered when few positions are shared.
     fn number_vertices(&mut self) {
+        type Key = ([u64; 3], [u32; 3], u32);
         let number = |vertices: &[BspVertex]| {
-            let mut first = std::collections::HashMap::with_capacity(vertices.len());
+            let mut first: std::collections::HashMap<Key, u32> = std::collections::HashMap::with_capacity(vertices.len());
+            let mut positions = std::collections::HashMap::new();
+            let mut shared = Vec::new();
             let ids: Vec<u32> = vertices
                 .iter()
                 .map(|v| {
-                    let next = first.len() as u32;
-                    *first.entry(v.position.to_array().map(f64::to_bits)).or_insert(next)
+                    let position = v.position.to_array().map(f64::to_bits);
+                    let key = (position, v.normal.to_array().map(f32::to_bits), v.intensity.to_bits());
+                    *first.entry(key).or_insert_with(|| {
+                        let next = positions.len() as u32;
+                        let position = *positions.entry(position).or_insert(next);
+                        shared.push(SharedVertex { vertex: *v, position });
+                        shared.len() as u32 - 1
+                    })
                 })
                 .collect();
-            (first.len() * VERTEX_SHARING <= vertices.len()).then_some(ids)
+            (positions.len() * VERTEX_SHARING <= vertices.len()).then_some((ids, shared))
         };
         // The first faces tell: `many`'s three million separate vertices are not
         // all hashed (0.8 s of its load) to find that none is shared.
         let sample = &self.record_vertices[..self.record_vertices.len().min(VERTEX_SHARING_SAMPLE)];
-        self.vertex_ids =
+        (self.vertex_ids, self.shared_vertices) =
             if number(sample).is_some() { number(&self.record_vertices) } else { None }.unwrap_or_default();
     }
 
@@ -402,22 +440,28 @@ impl Bsp {
         prefetch(p.wrapping_add(std::mem::size_of::<FaceRecord>() - 1));
     }
 
-    /// [`Bsp::prefetch_record`] for face `i`'s vertices and position numbers: their
-    /// first and last bytes (a triangle's three vertices, 120 bytes, lie in two or
-    /// three lines). Reads the record (best after [`Bsp::prefetch_record`]).
+    /// [`Bsp::prefetch_record`] for face `i`'s vertices: their first and last bytes
+    /// (a triangle's three vertices, 120 bytes, lie in two or three lines), or,
+    /// where the tree numbers them, their numbers (the distinct vertices they
+    /// name are met by the faces around them: asking for them too, a third visit
+    /// ahead, measured no faster). Reads the record
+    /// (best after [`Bsp::prefetch_record`]).
     #[inline(always)]
     pub fn prefetch_record_vertices(&self, i: u32) {
         if let Some(r) = self.records.get(i as usize) {
             // (Addresses out of range would only waste the hints: no checks.)
             let (start, end) = (r.start as usize, r.end as usize);
+            if !self.vertex_ids.is_empty() {
+                let first = self.vertex_ids.as_ptr().wrapping_add(start).cast::<u8>();
+                prefetch(first);
+                prefetch(self.vertex_ids.as_ptr().wrapping_add(end).cast::<u8>().wrapping_sub(1));
+                return;
+            }
             let first = self.record_vertices.as_ptr().wrapping_add(start).cast::<u8>();
             let last = self.record_vertices.as_ptr().wrapping_add(end).cast::<u8>().wrapping_sub(1);
             prefetch(first);
             prefetch(first.wrapping_add(64));
             prefetch(last);
-            if !self.vertex_ids.is_empty() {
-                prefetch(self.vertex_ids.as_ptr().wrapping_add(start).cast::<u8>());
-            }
         }
     }
 
@@ -434,13 +478,21 @@ impl Bsp {
         }
     }
 
-    /// The position numbers of a face's record vertices (equal numbers: equal
-    /// positions, bit for bit; in one tree), or `None` when the tree's faces share
-    /// too few vertices for them to be kept (`VERTEX_SHARING`). The GP transforms a
-    /// shared position once ([`crate::gp`]'s vertex cache).
+    /// The numbers of a face's record vertices in [`Bsp::shared_vertex`] (equal
+    /// numbers: equal vertices, bit for bit; in one tree), or `None` when the
+    /// tree's faces share too few positions for them to be kept
+    /// (`VERTEX_SHARING`). The GP reads a shared vertex through them, and
+    /// transforms a shared position once ([`crate::gp`]'s vertex cache, by
+    /// [`SharedVertex::position`]).
     #[inline]
     pub fn record_vertex_ids_of(&self, r: &FaceRecord) -> Option<&[u32]> {
         self.vertex_ids.get(r.start as usize..r.end as usize)
+    }
+
+    /// The distinct vertex numbered `id` ([`Bsp::record_vertex_ids_of`]).
+    #[inline(always)]
+    pub fn shared_vertex(&self, id: u32) -> &SharedVertex {
+        &self.shared_vertices[id as usize]
     }
 
     /// The faces in the subtree of `node` (its own and all below it).

@@ -1325,7 +1325,11 @@ impl FrameBuilder<'_> {
         eye_local: &DVec3,
         sun: &DVec3,
     ) {
-        let vertices = tree.record_vertices_of(face);
+        // Where the tree numbers its vertices, they are read through the numbers
+        // from its distinct vertices (with their position numbers for the cache);
+        // else the record's own copies (and with no cache: the tests compare it).
+        let ids = if self.f.vertex_cache { tree.record_vertex_ids_of(face) } else { None };
+        let vertices = if ids.is_some() { &[] } else { tree.record_vertices_of(face) };
         let Some(instance_class) = self.f.class[face.instance as usize] else { return };
         let counters = &mut self.counters;
         counters.faces_in += 1;
@@ -1360,9 +1364,17 @@ impl FrameBuilder<'_> {
         // The vertices' places from the cache when the tree numbers them (the test
         // made once a face: a tree that does not, `many`'s, pays nothing); their
         // light always per face.
-        let ids = if self.f.vertex_cache { tree.record_vertex_ids_of(face) } else { None };
         let (and, or);
-        if let ([a, b, c], true) = (vertices, self.f.triangles) {
+        let corners = match (ids, vertices) {
+            _ if !self.f.triangles => None,
+            (Some(&[i, j, k]), _) => {
+                let (a, b, c) = (tree.shared_vertex(i), tree.shared_vertex(j), tree.shared_vertex(k));
+                Some(([&a.vertex, &b.vertex, &c.vertex], Some([a.position, b.position, c.position])))
+            }
+            (None, [a, b, c]) => Some(([a, b, c], None)),
+            _ => None,
+        };
+        if let Some(([a, b, c], positions)) = corners {
             // A triangle (nearly every face of `many` and `terrain`): its vertices
             // in registers, and when it lies inside the window (class 1) set up
             // from them with no scratch list: the operations of the general path
@@ -1370,8 +1382,8 @@ impl FrameBuilder<'_> {
             // In the copy compiled for AVX2 the three vertices are projected in
             // AVX2 lanes ([`TriangleLanes`]); with no cache (`many`'s tree) also
             // placed in them.
-            let ([a, b, c], lanes) = match ids {
-                Some(&[i, j, k]) => {
+            let ([a, b, c], lanes) = match positions {
+                Some([i, j, k]) => {
                     let places = &mut scratch.places;
                     let ((pa, ca), (pb, cb), (pc, cc)) = (
                         light.cached_place(places, i, a),
@@ -1433,16 +1445,24 @@ impl FrameBuilder<'_> {
             scratch.eye.extend_from_slice(&[a, b, c]);
         } else {
             scratch.eye.clear();
-            scratch.eye.reserve(vertices.len());
             let (mut all, mut any) = (0x1Fu8, 0u8);
-            for (k, v) in vertices.iter().enumerate() {
-                let (e, code) = match ids {
-                    Some(ids) => light.cached_vertex(&mut scratch.places, ids[k], v),
-                    None => light.vertex(v),
-                };
-                all &= code;
-                any |= code;
-                scratch.eye.push(e);
+            if let Some(ids) = ids {
+                scratch.eye.reserve(ids.len());
+                for &id in ids {
+                    let v = tree.shared_vertex(id);
+                    let (e, code) = light.cached_vertex(&mut scratch.places, v.position, &v.vertex);
+                    all &= code;
+                    any |= code;
+                    scratch.eye.push(e);
+                }
+            } else {
+                scratch.eye.reserve(vertices.len());
+                for v in vertices {
+                    let (e, code) = light.vertex(v);
+                    all &= code;
+                    any |= code;
+                    scratch.eye.push(e);
+                }
             }
             (and, or) = (all, any);
         }
