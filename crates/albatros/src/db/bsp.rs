@@ -60,6 +60,9 @@ const SPLIT_COST: i64 = 8;
 /// triangles (and the GP transforms it once, not six times), `many`'s separate
 /// triangles in one (where looking positions up would cost and save nothing).
 const VERTEX_SHARING: usize = 2;
+/// The walk asks for all the nodes of a subtree of at most this many at once
+/// when it enters it from a larger one ([`Bsp::prefetch_nodes`]).
+const SMALL_SUBTREE: u32 = 16;
 /// The record vertices (the first ones, in node order) whose sharing decides
 /// whether all are numbered.
 const VERTEX_SHARING_SAMPLE: usize = 1 << 16;
@@ -465,6 +468,25 @@ impl Bsp {
         }
     }
 
+    /// [`Bsp::prefetch_record`] for the nodes `start..end` (a small subtree's) and
+    /// their subtree face counts.
+    #[inline(always)]
+    fn prefetch_nodes(&self, start: u32, end: u32) {
+        let size = std::mem::size_of::<BspNode>();
+        let first = self.nodes.as_ptr().wrapping_add(start as usize).cast::<u8>();
+        let bytes = (end - start) as usize * size;
+        // (Addresses out of range would only waste the hints: no checks.)
+        let mut k = 0;
+        while k < bytes {
+            prefetch(first.wrapping_add(k));
+            k += 64;
+        }
+        prefetch(first.wrapping_add(bytes - 1));
+        let counts = self.subtree_faces.as_ptr().wrapping_add(start as usize).cast::<u8>();
+        prefetch(counts);
+        prefetch(counts.wrapping_add((end - start) as usize * 4 - 1));
+    }
+
     /// [`Bsp::prefetch_record`] for node `n` and its subtree's face count (which
     /// the GP's cull test reads on entering it).
     #[inline(always)]
@@ -801,6 +823,8 @@ impl Bsp {
             faces: std::ops::Range<u32>,
             far: u32,
             far_slot: Slot,
+            /// The end of the far child's subtree (`far..far_end`).
+            far_end: u32,
         }
         // Every node: its near side, its straddling guests and faces, its far side.
         // A node goes on the stack only while its near child's subtree is walked,
@@ -809,6 +833,10 @@ impl Bsp {
         // and the far child entered without a push.
         let mut stack: Vec<Rest> = Vec::new();
         let mut n = root;
+        // The end of `n`'s subtree (`n..end`), worked out from the parent's as the
+        // walk goes down: the front child's subtree ends where the back child's
+        // begins (depth-first numbering, front child first).
+        let mut end = root + self.subtree_nodes.get(root as usize).copied().unwrap_or(0);
         'enter: loop {
             // Enter node `n`.
             let mut rest = if let Some(whole) = cut(n) {
@@ -817,12 +845,24 @@ impl Bsp {
             } else {
                 let node = &self.nodes[n as usize];
                 let eye_front = node.plane.distance(eye) >= 0.0;
-                let (near, near_slot, far, far_slot) = if eye_front {
-                    (node.front, Slot::Front, node.back, Slot::Back)
+                let front_end = if node.back != NONE { node.back } else { end };
+                let (near, near_slot, near_end, far, far_slot, far_end) = if eye_front {
+                    (node.front, Slot::Front, front_end, node.back, Slot::Back, end)
                 } else {
-                    (node.back, Slot::Back, node.front, Slot::Front)
+                    (node.back, Slot::Back, end, node.front, Slot::Front, front_end)
                 };
-                let rest = Rest { node: n, faces: node.faces.clone(), far, far_slot };
+                debug_assert!(node.front == NONE || node.front == n + 1);
+                let rest = Rest { node: n, faces: node.faces.clone(), far, far_slot, far_end };
+                if end - n > SMALL_SUBTREE {
+                    // A small child's nodes asked for at once on the way in, rather
+                    // than one after another as its walk meets them (hints).
+                    if near != NONE && near_end - near <= SMALL_SUBTREE {
+                        self.prefetch_nodes(near, near_end);
+                    }
+                    if far != NONE && far_end - far <= SMALL_SUBTREE {
+                        self.prefetch_nodes(far, far_end);
+                    }
+                }
                 if far != NONE {
                     // Entered after the near side: asked for now, so that a small
                     // near side's walk covers its miss (a hint, no effect on the order).
@@ -831,6 +871,7 @@ impl Bsp {
                 if near != NONE {
                     stack.push(rest);
                     n = near;
+                    end = near_end;
                     continue 'enter;
                 }
                 if GUESTS {
@@ -840,7 +881,9 @@ impl Bsp {
             };
             // Leave the near side of `rest` (or of the nodes on the stack).
             loop {
-                let Some(Rest { node, faces, far, far_slot }) = rest.take().or_else(|| stack.pop()) else { return };
+                let Some(Rest { node, faces, far, far_slot, far_end }) = rest.take().or_else(|| stack.pop()) else {
+                    return;
+                };
                 if GUESTS {
                     visit(Piece::Visit(Visit::Guests(node, Slot::Straddle)));
                 }
@@ -849,6 +892,7 @@ impl Bsp {
                 }
                 if far != NONE {
                     n = far;
+                    end = far_end;
                     continue 'enter;
                 }
                 if GUESTS {
