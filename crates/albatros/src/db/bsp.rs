@@ -62,7 +62,7 @@ const SPLIT_COST: i64 = 8;
 const VERTEX_SHARING: usize = 2;
 /// The walk asks for all the nodes of a subtree of at most this many at once
 /// when it enters it from a larger one ([`Bsp::prefetch_nodes`]).
-const SMALL_SUBTREE: u32 = 16;
+const SMALL_SUBTREE: u32 = 32;
 /// The record vertices (the first ones, in node order) whose sharing decides
 /// whether all are numbered.
 const VERTEX_SHARING_SAMPLE: usize = 1 << 16;
