@@ -1927,18 +1927,40 @@ mod tests {
         for (name, eyes) in [("default", 16), ("city", 16), ("terrain", 6)] {
             let db = Database::new(builtin::scene(name).expect("built-in"));
             let screen = Screen { width: 320, height: 200 };
-            // Vertices with one position number have one position (then the
-            // cache's places are theirs), and terrain's grid is numbered.
+            // Where the tree numbers its vertices, each record's numbers give
+            // its own vertices bit for bit from the distinct ones; distinct
+            // vertices are distinct; one position number, one position, and
+            // one position, one number (then the cache's places are theirs);
+            // terrain's grid and city's boxes are numbered.
             if let Some(ids) = db.bsp.records.first().and_then(|r| db.bsp.record_vertex_ids_of(r)) {
                 numbered |= !ids.is_empty();
-                let mut at = std::collections::HashMap::new();
+                let bits = |v: &BspVertex| {
+                    (
+                        v.position.to_array().map(f64::to_bits),
+                        v.normal.to_array().map(f32::to_bits),
+                        v.intensity.to_bits(),
+                    )
+                };
+                let (mut vertex_of, mut id_of) = (std::collections::HashMap::new(), std::collections::HashMap::new());
+                let (mut position_of, mut number_of) =
+                    (std::collections::HashMap::new(), std::collections::HashMap::new());
                 for r in &db.bsp.records {
                     let ids = db.bsp.record_vertex_ids_of(r).expect("numbered tree");
-                    for (v, &id) in db.bsp.record_vertices_of(r).iter().zip(ids) {
-                        let p = v.position.to_array().map(f64::to_bits);
-                        assert_eq!(*at.entry(id).or_insert(p), p, "{name}: position number {id}");
+                    let vertices = db.bsp.record_vertices_of(r);
+                    assert_eq!(ids.len(), vertices.len(), "{name}: a record's numbers");
+                    for (v, &id) in vertices.iter().zip(ids) {
+                        let s = db.bsp.shared_vertex(id);
+                        assert_eq!(bits(&s.vertex), bits(v), "{name}: distinct vertex {id}");
+                        assert_eq!(*vertex_of.entry(id).or_insert(bits(v)), bits(v), "{name}: number {id}");
+                        assert_eq!(*id_of.entry(bits(v)).or_insert(id), id, "{name}: two numbers for {v:?}");
+                        let p = bits(v).0;
+                        assert_eq!(*position_of.entry(s.position).or_insert(p), p, "{name}: position {}", s.position);
+                        assert_eq!(*number_of.entry(p).or_insert(s.position), s.position, "{name}: at {p:?}");
                     }
                 }
+                assert!(name != "city" || position_of.len() < vertex_of.len(), "city's positions are not shared");
+            } else {
+                assert!(name != "terrain" && name != "city", "{name} is not numbered");
             }
             for k in 0..eyes {
                 let mut eye = db.scene.eye;
