@@ -487,6 +487,9 @@ impl Bsp {
     /// their subtree face counts.
     #[inline(always)]
     fn prefetch_nodes(&self, start: u32, end: u32) {
+        if end <= start {
+            return;
+        }
         let size = std::mem::size_of::<BspNode>();
         let first = self.nodes.as_ptr().wrapping_add(start as usize).cast::<u8>();
         let bytes = (end - start) as usize * size;
@@ -852,6 +855,9 @@ impl Bsp {
         // walk goes down: the front child's subtree ends where the back child's
         // begins (depth-first numbering, front child first).
         let mut end = root + self.subtree_nodes.get(root as usize).copied().unwrap_or(0);
+        if end - root <= SMALL_SUBTREE {
+            self.prefetch_nodes(root, end);
+        }
         'enter: loop {
             // Enter node `n`.
             let mut rest = if let Some(whole) = cut(n) {
@@ -860,15 +866,16 @@ impl Bsp {
             } else {
                 let node = &self.nodes[n as usize];
                 let eye_front = node.plane.distance(eye) >= 0.0;
-                let front_end = if node.back != NONE { node.back } else { end };
-                let (near, near_slot, near_end, far, far_slot, far_end) = if eye_front {
-                    (node.front, Slot::Front, front_end, node.back, Slot::Back, end)
+                let (near, near_slot, far, far_slot) = if eye_front {
+                    (node.front, Slot::Front, node.back, Slot::Back)
                 } else {
-                    (node.back, Slot::Back, end, node.front, Slot::Front, front_end)
+                    (node.back, Slot::Back, node.front, Slot::Front)
                 };
                 debug_assert!(node.front == NONE || node.front == n + 1);
-                let rest = Rest { node: n, faces: node.faces.clone(), far, far_slot, far_end };
+                let (near_end, far_end);
                 if end - n > SMALL_SUBTREE {
+                    let front_end = if node.back != NONE { node.back } else { end };
+                    (near_end, far_end) = if eye_front { (front_end, end) } else { (end, front_end) };
                     // A small child's nodes asked for at once on the way in, rather
                     // than one after another as its walk meets them (hints).
                     if near != NONE && near_end - near <= SMALL_SUBTREE {
@@ -876,13 +883,18 @@ impl Bsp {
                     }
                     if far != NONE && far_end - far <= SMALL_SUBTREE {
                         self.prefetch_nodes(far, far_end);
+                    } else if far != NONE {
+                        // Entered after the near side: asked for now, so that a small
+                        // near side's walk covers its miss (a hint, no effect on the
+                        // order).
+                        self.prefetch_node(far);
                     }
+                } else {
+                    // In a small subtree, whose nodes were asked for on the way in:
+                    // the ends matter no more (a child's is taken as itself).
+                    (near_end, far_end) = (near, far);
                 }
-                if far != NONE {
-                    // Entered after the near side: asked for now, so that a small
-                    // near side's walk covers its miss (a hint, no effect on the order).
-                    self.prefetch_node(far);
-                }
+                let rest = Rest { node: n, faces: node.faces.clone(), far, far_slot, far_end };
                 if near != NONE {
                     stack.push(rest);
                     n = near;

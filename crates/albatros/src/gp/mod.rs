@@ -13,7 +13,9 @@
 //!
 //! Work shared between faces: a vertex shared by several faces of a mesh (a
 //! terrain's by about six) is transformed and outcoded once while its faces are
-//! met together (a small cache by the tree's position numbers, `VertexCache`),
+//! met together (a small cache by the tree's position numbers, `VertexCache`;
+//! such a tree's faces' vertices read through their numbers from its distinct
+//! vertices, [`Bsp::shared_vertex`]: 12 bytes a triangle rather than 120),
 //! and a textured face's texture axes are reused by the next face of its instance
 //! and material ([`setup::Setup::add_face`]); both give the very bits the face
 //! by face arithmetic gives.
@@ -466,8 +468,9 @@ const VERTEX_CACHE_BITS: u32 = 10;
 const VERTEX_CACHE_SLOTS: usize = 1 << VERTEX_CACHE_BITS;
 
 /// The eye-space positions and outcodes of the vertices met last, by their
-/// position numbers in the tree being traversed ([`Bsp::record_vertex_ids_of`]):
-/// one slot per number modulo [`VERTEX_CACHE_SLOTS`].
+/// position numbers in the tree being traversed
+/// ([`SharedVertex::position`](crate::db::bsp::SharedVertex::position)): one slot
+/// per number modulo [`VERTEX_CACHE_SLOTS`].
 ///
 /// Why: the faces of a mesh share their vertices (each of a terrain grid's in about
 /// six triangles), and the traversal meets a subtree's faces together; the
