@@ -40,11 +40,17 @@
 //! the GP reads every frame in that order. Each node keeps the box around its
 //! subtree's faces ([`NodeBounds`]), with which the GP passes over whole subtrees
 //! outside the view volume ([`Bsp::traverse_subtree_culled`]). Where faces share
-//! their vertices (a mesh, a terrain grid), the record vertices are numbered by
-//! position ([`Bsp::record_vertex_ids_of`]), so that the GP transforms a position
-//! once for the faces around it. The GP asks for a face's record and vertices and
-//! for a far child a little before it reads them ([`Bsp::prefetch_record`]),
-//! hints that change no result.
+//! their vertices (a mesh, a terrain grid), the record vertices are numbered
+//! ([`Bsp::record_vertex_ids_of`]): the GP reads each distinct vertex (48 bytes,
+//! [`SharedVertex`]) through 4-byte numbers rather than the records' own copies
+//! (`terrain`: 12 rather than 120 bytes a triangle, a distinct vertex met by
+//! about six), and transforms a position once for the faces around it (by its
+//! position number). The GP asks for a face's record and vertices and for a far
+//! child a little before it reads them ([`Bsp::prefetch_record`]), and the walk
+//! asks for all the nodes of a small subtree (at most `SMALL_SUBTREE`, 32 nodes
+//! of 48 bytes) as it enters it from a larger one (`Bsp::prefetch_nodes`): its
+//! end is worked out on the way down, the front child's subtree ending where the
+//! back child's begins; hints that change no result.
 //!
 //! **Invariant**: for non-intersecting faces, a face that can hide another from the
 //! eye is emitted before it.
@@ -71,6 +77,17 @@ const SPLIT_COST: i64 = 8;
 /// triangles (and the GP transforms it once, not six times), `many`'s separate
 /// triangles in one (where looking positions up would cost and save nothing).
 const VERTEX_SHARING: usize = 2;
+/// The walk asks for all the nodes of a subtree of at most this many at once
+/// when it enters it from a larger one ([`Bsp::prefetch_nodes`]).
+///
+/// Why: the walk's node loads hang one on another (a node's child is known when
+/// the node is read), and a near child on the back side lies far from its parent:
+/// a quarter of `terrain`'s walk stood on the node's load. A subtree's nodes lie
+/// together (depth-first numbering), so that a small one is a few lines (32
+/// nodes: 24), asked for at once and fetched in parallel. `terrain` one thread,
+/// fastest frames: GP 1.21x with 16, a further 1.15x with 32; 64 was slower
+/// (0.94x against 32).
+const SMALL_SUBTREE: u32 = 32;
 /// The record vertices (the first ones, in node order) whose sharing decides
 /// whether all are numbered.
 const VERTEX_SHARING_SAMPLE: usize = 1 << 16;
@@ -176,6 +193,30 @@ pub struct FaceRecord {
     pub face: u32,
 }
 
+/// A distinct record vertex of a tree whose faces share their vertices
+/// ([`Bsp::record_vertex_ids_of`]): the vertex, and a number shared by every
+/// distinct vertex at its position (bit for bit), by which the GP transforms a
+/// position once ([`crate::gp`]'s vertex cache).
+///
+/// Layout (48 bytes, 8-aligned): `vertex` (bytes 0-39: position `f64` x 3, normal
+/// `f32` x 3, intensity `f32`), `position` (40-43), 4 bytes of padding.
+///
+/// Why: the records' vertices repeat a shared vertex once per face around it (a
+/// terrain grid's about six times: 40 bytes x 3 a triangle, 15.7 MB of `terrain`'s
+/// 131 k triangles), and the GP read each face's copies from memory every frame.
+/// Through the numbers it reads 4 bytes a corner, and a distinct vertex once from
+/// memory for the faces around it (met together in the walk, so from the cache
+/// after the first). Keyed by the whole vertex, not its position alone: the faces
+/// at a position may have their own normals (`city`'s boxes: 39 k positions, 102 k
+/// distinct vertices), and the GP lights each with its own.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SharedVertex {
+    /// The vertex.
+    pub vertex: BspVertex,
+    /// Its position's number (equal numbers: equal positions, bit for bit).
+    pub position: u32,
+}
+
 /// The tree.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Bsp {
@@ -189,10 +230,14 @@ pub struct Bsp {
     pub records: Vec<FaceRecord>,
     /// The records' vertices, in face order.
     pub record_vertices: Vec<BspVertex>,
-    /// Per record vertex: a number shared by every record vertex at the same
-    /// position (bit for bit), when the tree's faces share their vertices enough
-    /// to be worth it ([`VERTEX_SHARING`]), else empty ([`Bsp::record_vertex_ids_of`]).
+    /// Per record vertex: its number in [`Bsp::shared_vertices`] (a number shared
+    /// by every record vertex equal to it bit for bit: position, normal and
+    /// intensity), when the tree's faces share their positions enough to be worth
+    /// it ([`VERTEX_SHARING`]), else empty ([`Bsp::record_vertex_ids_of`]).
     vertex_ids: Vec<u32>,
+    /// The distinct record vertices, in order of first appearance, each with its
+    /// position number ([`SharedVertex`]); empty with [`Bsp::vertex_ids`].
+    shared_vertices: Vec<SharedVertex>,
     /// Build statistics.
     pub stats: BspStats,
     /// Per node: the faces of its subtree (its own and all below it).
@@ -299,26 +344,37 @@ impl Bsp {
             .collect();
     }
 
-    /// Numbers the record vertices by position ([`Bsp::vertex_ids`]), in order of
-    /// first appearance (so the faces of a subtree, which lie together, have their
-    /// numbers close together), or leaves them unnumbered when few positions are
-    /// shared.
+    /// Numbers the record vertices ([`Bsp::vertex_ids`]) and keeps the distinct
+    /// ones ([`Bsp::shared_vertices`]), each with its position's number, all in
+    /// order of first appearance (so the faces of a subtree, which lie together,
+    /// have their numbers and distinct vertices close together), or leaves them
+    /// unnumbered when few positions are shared.
     fn number_vertices(&mut self) {
+        type Key = ([u64; 3], [u32; 3], u32);
         let number = |vertices: &[BspVertex]| {
-            let mut first = std::collections::HashMap::with_capacity(vertices.len());
+            let mut first: std::collections::HashMap<Key, u32> =
+                std::collections::HashMap::with_capacity(vertices.len());
+            let mut positions = std::collections::HashMap::new();
+            let mut shared = Vec::new();
             let ids: Vec<u32> = vertices
                 .iter()
                 .map(|v| {
-                    let next = first.len() as u32;
-                    *first.entry(v.position.to_array().map(f64::to_bits)).or_insert(next)
+                    let position = v.position.to_array().map(f64::to_bits);
+                    let key = (position, v.normal.to_array().map(f32::to_bits), v.intensity.to_bits());
+                    *first.entry(key).or_insert_with(|| {
+                        let next = positions.len() as u32;
+                        let position = *positions.entry(position).or_insert(next);
+                        shared.push(SharedVertex { vertex: *v, position });
+                        shared.len() as u32 - 1
+                    })
                 })
                 .collect();
-            (first.len() * VERTEX_SHARING <= vertices.len()).then_some(ids)
+            (positions.len() * VERTEX_SHARING <= vertices.len()).then_some((ids, shared))
         };
         // The first faces tell: `many`'s three million separate vertices are not
         // all hashed (0.8 s of its load) to find that none is shared.
         let sample = &self.record_vertices[..self.record_vertices.len().min(VERTEX_SHARING_SAMPLE)];
-        self.vertex_ids =
+        (self.vertex_ids, self.shared_vertices) =
             if number(sample).is_some() { number(&self.record_vertices) } else { None }.unwrap_or_default();
     }
 
@@ -344,23 +400,51 @@ impl Bsp {
         prefetch(p.wrapping_add(std::mem::size_of::<FaceRecord>() - 1));
     }
 
-    /// [`Bsp::prefetch_record`] for face `i`'s vertices and position numbers: their
-    /// first and last bytes (a triangle's three vertices, 120 bytes, lie in two or
-    /// three lines). Reads the record (best after [`Bsp::prefetch_record`]).
+    /// [`Bsp::prefetch_record`] for face `i`'s vertices: their first and last bytes
+    /// (a triangle's three vertices, 120 bytes, lie in two or three lines), or,
+    /// where the tree numbers them, their numbers (the distinct vertices they
+    /// name are met by the faces around them: asking for them too, a third visit
+    /// ahead, measured no faster). Reads the record
+    /// (best after [`Bsp::prefetch_record`]).
     #[inline(always)]
     pub fn prefetch_record_vertices(&self, i: u32) {
         if let Some(r) = self.records.get(i as usize) {
             // (Addresses out of range would only waste the hints: no checks.)
             let (start, end) = (r.start as usize, r.end as usize);
+            if !self.vertex_ids.is_empty() {
+                let first = self.vertex_ids.as_ptr().wrapping_add(start).cast::<u8>();
+                prefetch(first);
+                prefetch(self.vertex_ids.as_ptr().wrapping_add(end).cast::<u8>().wrapping_sub(1));
+                return;
+            }
             let first = self.record_vertices.as_ptr().wrapping_add(start).cast::<u8>();
             let last = self.record_vertices.as_ptr().wrapping_add(end).cast::<u8>().wrapping_sub(1);
             prefetch(first);
             prefetch(first.wrapping_add(64));
             prefetch(last);
-            if !self.vertex_ids.is_empty() {
-                prefetch(self.vertex_ids.as_ptr().wrapping_add(start).cast::<u8>());
-            }
         }
+    }
+
+    /// [`Bsp::prefetch_record`] for the nodes `start..end` (a small subtree's) and
+    /// their subtree face counts.
+    #[inline(always)]
+    fn prefetch_nodes(&self, start: u32, end: u32) {
+        if end <= start {
+            return;
+        }
+        let size = std::mem::size_of::<BspNode>();
+        let first = self.nodes.as_ptr().wrapping_add(start as usize).cast::<u8>();
+        let bytes = (end - start) as usize * size;
+        // (Addresses out of range would only waste the hints: no checks.)
+        let mut k = 0;
+        while k < bytes {
+            prefetch(first.wrapping_add(k));
+            k += 64;
+        }
+        prefetch(first.wrapping_add(bytes - 1));
+        let counts = self.subtree_faces.as_ptr().wrapping_add(start as usize).cast::<u8>();
+        prefetch(counts);
+        prefetch(counts.wrapping_add((end - start) as usize * 4 - 1));
     }
 
     /// [`Bsp::prefetch_record`] for node `n` and its subtree's face count (which
@@ -376,13 +460,21 @@ impl Bsp {
         }
     }
 
-    /// The position numbers of a face's record vertices (equal numbers: equal
-    /// positions, bit for bit; in one tree), or `None` when the tree's faces share
-    /// too few vertices for them to be kept (`VERTEX_SHARING`). The GP transforms a
-    /// shared position once ([`crate::gp`]'s vertex cache).
+    /// The numbers of a face's record vertices in [`Bsp::shared_vertex`] (equal
+    /// numbers: equal vertices, bit for bit; in one tree), or `None` when the
+    /// tree's faces share too few positions for them to be kept
+    /// (`VERTEX_SHARING`). The GP reads a shared vertex through them, and
+    /// transforms a shared position once ([`crate::gp`]'s vertex cache, by
+    /// [`SharedVertex::position`]).
     #[inline]
     pub fn record_vertex_ids_of(&self, r: &FaceRecord) -> Option<&[u32]> {
         self.vertex_ids.get(r.start as usize..r.end as usize)
+    }
+
+    /// The distinct vertex numbered `id` ([`Bsp::record_vertex_ids_of`]).
+    #[inline(always)]
+    pub fn shared_vertex(&self, id: u32) -> &SharedVertex {
+        &self.shared_vertices[id as usize]
     }
 
     /// The faces in the subtree of `node` (its own and all below it).
@@ -991,6 +1083,8 @@ impl Bsp {
             faces: std::ops::Range<u32>,
             far: u32,
             far_slot: Slot,
+            /// The end of the far child's subtree (`far..far_end`).
+            far_end: u32,
         }
         // Every node: its near side, its straddling guests and faces, its far side.
         // A node goes on the stack only while its near child's subtree is walked,
@@ -999,6 +1093,13 @@ impl Bsp {
         // and the far child entered without a push.
         let mut stack: Vec<Rest> = Vec::new();
         let mut n = root;
+        // The end of `n`'s subtree (`n..end`), worked out from the parent's as the
+        // walk goes down: the front child's subtree ends where the back child's
+        // begins (depth-first numbering, front child first).
+        let mut end = root + self.subtree_nodes.get(root as usize).copied().unwrap_or(0);
+        if end - root <= SMALL_SUBTREE {
+            self.prefetch_nodes(root, end);
+        }
         'enter: loop {
             // Enter node `n`.
             let mut rest = if let Some(whole) = cut(n) {
@@ -1012,15 +1113,34 @@ impl Bsp {
                 } else {
                     (node.back, Slot::Back, node.front, Slot::Front)
                 };
-                let rest = Rest { node: n, faces: node.faces.clone(), far, far_slot };
-                if far != NONE {
-                    // Entered after the near side: asked for now, so that a small
-                    // near side's walk covers its miss (a hint, no effect on the order).
-                    self.prefetch_node(far);
+                debug_assert!(node.front == NONE || node.front == n + 1);
+                let (near_end, far_end);
+                if end - n > SMALL_SUBTREE {
+                    let front_end = if node.back != NONE { node.back } else { end };
+                    (near_end, far_end) = if eye_front { (front_end, end) } else { (end, front_end) };
+                    // A small child's nodes asked for at once on the way in, rather
+                    // than one after another as its walk meets them (hints).
+                    if near != NONE && near_end - near <= SMALL_SUBTREE {
+                        self.prefetch_nodes(near, near_end);
+                    }
+                    if far != NONE && far_end - far <= SMALL_SUBTREE {
+                        self.prefetch_nodes(far, far_end);
+                    } else if far != NONE {
+                        // Entered after the near side: asked for now, so that a small
+                        // near side's walk covers its miss (a hint, no effect on the
+                        // order).
+                        self.prefetch_node(far);
+                    }
+                } else {
+                    // In a small subtree, whose nodes were asked for on the way in:
+                    // the ends matter no more (a child's is taken as itself).
+                    (near_end, far_end) = (near, far);
                 }
+                let rest = Rest { node: n, faces: node.faces.clone(), far, far_slot, far_end };
                 if near != NONE {
                     stack.push(rest);
                     n = near;
+                    end = near_end;
                     continue 'enter;
                 }
                 if GUESTS {
@@ -1030,7 +1150,9 @@ impl Bsp {
             };
             // Leave the near side of `rest` (or of the nodes on the stack).
             loop {
-                let Some(Rest { node, faces, far, far_slot }) = rest.take().or_else(|| stack.pop()) else { return };
+                let Some(Rest { node, faces, far, far_slot, far_end }) = rest.take().or_else(|| stack.pop()) else {
+                    return;
+                };
                 if GUESTS {
                     visit(Piece::Visit(Visit::Guests(node, Slot::Straddle)));
                 }
@@ -1039,6 +1161,7 @@ impl Bsp {
                 }
                 if far != NONE {
                     n = far;
+                    end = far_end;
                     continue 'enter;
                 }
                 if GUESTS {

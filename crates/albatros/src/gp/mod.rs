@@ -13,7 +13,9 @@
 //!
 //! Work shared between faces: a vertex shared by several faces of a mesh (a
 //! terrain's by about six) is transformed and outcoded once while its faces are
-//! met together (a small cache by the tree's position numbers, `VertexCache`),
+//! met together (a small cache by the tree's position numbers, `VertexCache`;
+//! such a tree's faces' vertices read through their numbers from its distinct
+//! vertices, [`Bsp::shared_vertex`]: 12 bytes a triangle rather than 120),
 //! and a textured face's texture axes are reused by the next face of its instance
 //! and material ([`setup::Setup::add_face`]); both give the very bits the face
 //! by face arithmetic gives.
@@ -466,8 +468,9 @@ const VERTEX_CACHE_BITS: u32 = 10;
 const VERTEX_CACHE_SLOTS: usize = 1 << VERTEX_CACHE_BITS;
 
 /// The eye-space positions and outcodes of the vertices met last, by their
-/// position numbers in the tree being traversed ([`Bsp::record_vertex_ids_of`]):
-/// one slot per number modulo [`VERTEX_CACHE_SLOTS`].
+/// position numbers in the tree being traversed
+/// ([`SharedVertex::position`](crate::db::bsp::SharedVertex::position)): one slot
+/// per number modulo [`VERTEX_CACHE_SLOTS`].
 ///
 /// Why: the faces of a mesh share their vertices (each of a terrain grid's in about
 /// six triangles), and the traversal meets a subtree's faces together; the
@@ -1325,7 +1328,11 @@ impl FrameBuilder<'_> {
         eye_local: &DVec3,
         sun: &DVec3,
     ) {
-        let vertices = tree.record_vertices_of(face);
+        // Where the tree numbers its vertices, they are read through the numbers
+        // from its distinct vertices (with their position numbers for the cache);
+        // else the record's own copies (and with no cache: the tests compare it).
+        let ids = if self.f.vertex_cache { tree.record_vertex_ids_of(face) } else { None };
+        let vertices = if ids.is_some() { &[] } else { tree.record_vertices_of(face) };
         let Some(instance_class) = self.f.class[face.instance as usize] else { return };
         let counters = &mut self.counters;
         counters.faces_in += 1;
@@ -1360,9 +1367,17 @@ impl FrameBuilder<'_> {
         // The vertices' places from the cache when the tree numbers them (the test
         // made once a face: a tree that does not, `many`'s, pays nothing); their
         // light always per face.
-        let ids = if self.f.vertex_cache { tree.record_vertex_ids_of(face) } else { None };
         let (and, or);
-        if let ([a, b, c], true) = (vertices, self.f.triangles) {
+        let corners = match (ids, vertices) {
+            _ if !self.f.triangles => None,
+            (Some(&[i, j, k]), _) => {
+                let (a, b, c) = (tree.shared_vertex(i), tree.shared_vertex(j), tree.shared_vertex(k));
+                Some(([&a.vertex, &b.vertex, &c.vertex], Some([a.position, b.position, c.position])))
+            }
+            (None, [a, b, c]) => Some(([a, b, c], None)),
+            _ => None,
+        };
+        if let Some(([a, b, c], positions)) = corners {
             // A triangle (nearly every face of `many` and `terrain`): its vertices
             // in registers, and when it lies inside the window (class 1) set up
             // from them with no scratch list: the operations of the general path
@@ -1370,8 +1385,8 @@ impl FrameBuilder<'_> {
             // In the copy compiled for AVX2 the three vertices are projected in
             // AVX2 lanes ([`TriangleLanes`]); with no cache (`many`'s tree) also
             // placed in them.
-            let ([a, b, c], lanes) = match ids {
-                Some(&[i, j, k]) => {
+            let ([a, b, c], lanes) = match positions {
+                Some([i, j, k]) => {
                     let places = &mut scratch.places;
                     let ((pa, ca), (pb, cb), (pc, cc)) = (
                         light.cached_place(places, i, a),
@@ -1433,16 +1448,24 @@ impl FrameBuilder<'_> {
             scratch.eye.extend_from_slice(&[a, b, c]);
         } else {
             scratch.eye.clear();
-            scratch.eye.reserve(vertices.len());
             let (mut all, mut any) = (0x1Fu8, 0u8);
-            for (k, v) in vertices.iter().enumerate() {
-                let (e, code) = match ids {
-                    Some(ids) => light.cached_vertex(&mut scratch.places, ids[k], v),
-                    None => light.vertex(v),
-                };
-                all &= code;
-                any |= code;
-                scratch.eye.push(e);
+            if let Some(ids) = ids {
+                scratch.eye.reserve(ids.len());
+                for &id in ids {
+                    let v = tree.shared_vertex(id);
+                    let (e, code) = light.cached_vertex(&mut scratch.places, v.position, &v.vertex);
+                    all &= code;
+                    any |= code;
+                    scratch.eye.push(e);
+                }
+            } else {
+                scratch.eye.reserve(vertices.len());
+                for v in vertices {
+                    let (e, code) = light.vertex(v);
+                    all &= code;
+                    any |= code;
+                    scratch.eye.push(e);
+                }
             }
             (and, or) = (all, any);
         }
@@ -1907,18 +1930,40 @@ mod tests {
         for (name, eyes) in [("default", 16), ("city", 16), ("terrain", 6)] {
             let db = Database::new(builtin::scene(name).expect("built-in"));
             let screen = Screen { width: 320, height: 200 };
-            // Vertices with one position number have one position (then the
-            // cache's places are theirs), and terrain's grid is numbered.
+            // Where the tree numbers its vertices, each record's numbers give
+            // its own vertices bit for bit from the distinct ones; distinct
+            // vertices are distinct; one position number, one position, and
+            // one position, one number (then the cache's places are theirs);
+            // terrain's grid and city's boxes are numbered.
             if let Some(ids) = db.bsp.records.first().and_then(|r| db.bsp.record_vertex_ids_of(r)) {
                 numbered |= !ids.is_empty();
-                let mut at = std::collections::HashMap::new();
+                let bits = |v: &BspVertex| {
+                    (
+                        v.position.to_array().map(f64::to_bits),
+                        v.normal.to_array().map(f32::to_bits),
+                        v.intensity.to_bits(),
+                    )
+                };
+                let (mut vertex_of, mut id_of) = (std::collections::HashMap::new(), std::collections::HashMap::new());
+                let (mut position_of, mut number_of) =
+                    (std::collections::HashMap::new(), std::collections::HashMap::new());
                 for r in &db.bsp.records {
                     let ids = db.bsp.record_vertex_ids_of(r).expect("numbered tree");
-                    for (v, &id) in db.bsp.record_vertices_of(r).iter().zip(ids) {
-                        let p = v.position.to_array().map(f64::to_bits);
-                        assert_eq!(*at.entry(id).or_insert(p), p, "{name}: position number {id}");
+                    let vertices = db.bsp.record_vertices_of(r);
+                    assert_eq!(ids.len(), vertices.len(), "{name}: a record's numbers");
+                    for (v, &id) in vertices.iter().zip(ids) {
+                        let s = db.bsp.shared_vertex(id);
+                        assert_eq!(bits(&s.vertex), bits(v), "{name}: distinct vertex {id}");
+                        assert_eq!(*vertex_of.entry(id).or_insert(bits(v)), bits(v), "{name}: number {id}");
+                        assert_eq!(*id_of.entry(bits(v)).or_insert(id), id, "{name}: two numbers for {v:?}");
+                        let p = bits(v).0;
+                        assert_eq!(*position_of.entry(s.position).or_insert(p), p, "{name}: position {}", s.position);
+                        assert_eq!(*number_of.entry(p).or_insert(s.position), s.position, "{name}: at {p:?}");
                     }
                 }
+                assert!(name != "city" || position_of.len() < vertex_of.len(), "city's positions are not shared");
+            } else {
+                assert!(name != "terrain" && name != "city", "{name} is not numbered");
             }
             for k in 0..eyes {
                 let mut eye = db.scene.eye;
