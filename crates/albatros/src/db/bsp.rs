@@ -27,6 +27,16 @@
 //! one the plain builder made (each face's vertices read at every test, a list per
 //! node), number for number: the tests check it against that builder.
 //!
+//! A large tree is built in parallel (on the current rayon pool, when it has
+//! several threads): the top of the tree alone, down to the nodes with fewer than a
+//! 32nd of the faces, each of whose subtrees is then set apart and built by a
+//! builder of its own (its faces moved into it and numbered in its list's order, the
+//! same `eps`), and stitched in its place: its nodes where the work stack would
+//! have built them, its faces in node order. A subtree's build reads nothing but
+//! its list and `eps`, and a face's number only tells it apart, so the tree is the
+//! one a single build makes whatever the threads (the tests build it so on pools
+//! of 1 to 3 threads, with subtrees of every size down to single faces).
+//!
 //! # Traversal
 //! At every node the eye's side is visited first, then the node's own faces, then the
 //! far side (Fuchs, Kedem and Naylor's classic order). Moving models are not in the
@@ -72,6 +82,12 @@ const COST_SAMPLE: usize = 1024;
 const PLANE_EPS: f64 = 1e-6;
 /// Cost of one split against one face of imbalance.
 const SPLIT_COST: i64 = 8;
+/// Faces from which the build sets subtrees apart to build them in parallel
+/// ([`Builder::grow`]); fewer are built in one go.
+const APART_FROM: usize = 1 << 14;
+/// The top of the tree is built alone down to the nodes with fewer than
+/// `1 / APART_PARTS` of the faces; each of those subtrees is built on its own.
+const APART_PARTS: usize = 32;
 /// [`Bsp::vertex_ids`] are kept when the record vertices are at least this many
 /// times the distinct positions: a terrain's grid has each position in about six
 /// triangles (and the GP transforms it once, not six times), `many`'s separate
@@ -268,18 +284,37 @@ enum Side {
 }
 
 impl Bsp {
-    /// Builds the tree over `faces` (each convex, planar, non-degenerate).
+    /// Builds the tree over `faces` (each convex, planar, non-degenerate), on the
+    /// current rayon pool when it has several threads and there are many faces (the
+    /// same tree as on one thread, number for number: [`Bsp::build_apart`]).
     pub fn build(faces: Vec<BspFace>) -> Self {
+        // On one thread building apart only moves the faces twice more.
+        let parallel = faces.len() >= APART_FROM && rayon::current_num_threads() > 1;
+        let apart_below = if parallel { faces.len() / APART_PARTS } else { 0 };
+        Self::build_apart(faces, apart_below)
+    }
+
+    /// [`Bsp::build`], the subtrees of fewer than `apart_below` faces built on their
+    /// own on the current rayon pool (none when 0): the same tree whatever
+    /// `apart_below` and the pool's threads.
+    fn build_apart(faces: Vec<BspFace>, apart_below: usize) -> Self {
         let input = faces.len();
-        let builder = Builder::new(faces);
+        let mut builder = Builder::new(faces);
         let mut bsp = Bsp { eps: builder.eps, ..Bsp::default() };
         bsp.stats.input_faces = input;
         if builder.faces.is_empty() {
             bsp.faces = builder.faces;
             return bsp;
         }
-        let on = builder.grow(&mut bsp);
-        bsp.renumber_faces(on);
+        let items = builder.items(apart_below > 0);
+        let (on, apart) = builder.grow(&mut bsp, items, apart_below);
+        if apart.is_empty() {
+            bsp.faces = builder.faces;
+            bsp.renumber_faces(on);
+        } else {
+            let (places, subtrees) = builder.build_apart(apart);
+            bsp.stitch(builder.faces, on, &places, subtrees);
+        }
         bsp.stats.nodes = bsp.nodes.len();
         bsp.stats.faces = bsp.faces.len();
         bsp.make_records();
@@ -516,6 +551,66 @@ impl Bsp {
         faces.extend(old.into_iter().flatten());
         self.faces = faces;
     }
+
+    /// Puts the subtrees built apart in their places ([`Builder::build_apart`]):
+    /// the top's nodes (`self.nodes`, each set-apart subtree a placeholder node at
+    /// `places`, its depth with it) and each subtree's nodes, in depth-first order,
+    /// and their faces in node order ([`Bsp::renumber_faces`]), the top's from
+    /// `faces` (numbered as `on`). The same tree, number for number, as one build:
+    /// a subtree's nodes follow its place in the work stack's order, and every face
+    /// is where its node and its place in the node's list put it.
+    fn stitch(&mut self, mut faces: Vec<BspFace>, on: Vec<u32>, places: &[(u32, usize)], subtrees: Vec<Bsp>) {
+        let top = std::mem::take(&mut self.nodes);
+        let total: usize = subtrees.iter().map(|s| s.nodes.len()).sum::<usize>() + top.len();
+        let mut nodes = Vec::with_capacity(total);
+        let mut out = Vec::with_capacity(on.len() + subtrees.iter().map(|s| s.faces.len()).sum::<usize>());
+        // Each top node's number in the whole tree.
+        let mut number = Vec::with_capacity(top.len());
+        let mut subtrees = places.iter().zip(subtrees).peekable();
+        for (i, mut node) in top.into_iter().enumerate() {
+            number.push(nodes.len() as u32);
+            if let Some(((_, depth), sub)) = subtrees.next_if(|((place, _), _)| *place as usize == i) {
+                let (first, start) = (nodes.len() as u32, out.len() as u32);
+                nodes.extend(sub.nodes.into_iter().map(|mut n| {
+                    for child in [&mut n.front, &mut n.back] {
+                        if *child != NONE {
+                            *child += first;
+                        }
+                    }
+                    n.faces = n.faces.start + start..n.faces.end + start;
+                    n
+                }));
+                out.extend(sub.faces);
+                self.stats.splits += sub.stats.splits;
+                self.stats.axis_nodes += sub.stats.axis_nodes;
+                self.stats.depth = self.stats.depth.max(depth - 1 + sub.stats.depth);
+            } else {
+                let start = out.len() as u32;
+                for &f in &on[node.faces.start as usize..node.faces.end as usize] {
+                    let f = &mut faces[f as usize];
+                    let &mut BspFace { plane, material, instance, face, .. } = f;
+                    out.push(BspFace { vertices: std::mem::take(&mut f.vertices), plane, material, instance, face });
+                }
+                node.faces = start..out.len() as u32;
+                nodes.push(node);
+            }
+        }
+        // The top's links, to their children's numbers.
+        let mut places = places.iter().peekable();
+        for (i, &n) in number.iter().enumerate() {
+            if places.next_if(|(place, _)| *place as usize == i).is_some() {
+                continue;
+            }
+            let node = &mut nodes[n as usize];
+            for child in [&mut node.front, &mut node.back] {
+                if *child != NONE {
+                    *child = number[*child as usize];
+                }
+            }
+        }
+        self.nodes = nodes;
+        self.faces = out;
+    }
 }
 
 /// A node's plane as [`Builder::choose_plane`] picks it.
@@ -642,10 +737,77 @@ impl Builder {
         Builder { faces, spans, positions, eps: extent * PLANE_EPS }
     }
 
-    /// Builds the nodes into `bsp` (depth first, front child first) and returns the
-    /// faces lying in the nodes' planes, node after node (numbered as in
-    /// [`Builder::faces`], which it leaves in `bsp`); each node's `faces` is, until
-    /// [`Bsp::renumber_faces`], its range of that list.
+    /// Every face's item, in face order (on the current rayon pool when `parallel`).
+    fn items(&self, parallel: bool) -> Vec<Item> {
+        let item = |(fi, f): (usize, &BspFace)| Item::of(fi as u32, f);
+        if parallel {
+            use rayon::prelude::*;
+            self.faces.par_iter().enumerate().map(item).collect()
+        } else {
+            self.faces.iter().enumerate().map(item).collect()
+        }
+    }
+
+    /// Builds each subtree [`Builder::grow`] set apart with a builder of its own (its
+    /// faces moved out of this one's, numbered in its list's order; the same `eps`),
+    /// in parallel on the current rayon pool. Returns each one's place and depth
+    /// and the subtree, its faces numbered in node order ([`Bsp::renumber_faces`]).
+    ///
+    /// A subtree built apart is the one a single build makes: it is built from its
+    /// list as the work stack holds it when its root comes to the top, by the same
+    /// steps (nothing in a node's build depends on anything outside its list but
+    /// `eps`), and its faces' numbers only tell them apart (a face plane's owner; a
+    /// split's pieces, whose new numbers change no order: [`Bsp::renumber_faces`]).
+    fn build_apart(&mut self, apart: Vec<Apart>) -> (Vec<(u32, usize)>, Vec<Bsp>) {
+        use rayon::prelude::*;
+        let places = apart.iter().map(|a| (a.place, a.depth)).collect();
+        // The faces move out one subtree after the other; each subtree's builder then
+        // copies their positions from this one's (which it only reads).
+        let jobs: Vec<(Vec<BspFace>, Vec<Item>)> = apart
+            .into_iter()
+            .map(|Apart { items, .. }| {
+                let faces = items
+                    .iter()
+                    .map(|item| {
+                        let f = &mut self.faces[item.face as usize];
+                        let &mut BspFace { plane, material, instance, face, .. } = f;
+                        BspFace { vertices: std::mem::take(&mut f.vertices), plane, material, instance, face }
+                    })
+                    .collect();
+                (faces, items)
+            })
+            .collect();
+        let (spans, positions, eps) = (&self.spans, &self.positions, self.eps);
+        let subtrees = jobs
+            .into_par_iter()
+            .map(|(faces, mut items)| {
+                let mut builder = Builder {
+                    spans: Vec::with_capacity(items.len()),
+                    positions: Vec::with_capacity(faces.iter().map(|f| f.vertices.len()).sum()),
+                    faces,
+                    eps,
+                };
+                for (k, item) in items.iter_mut().enumerate() {
+                    let [start, end] = spans[item.face as usize];
+                    let at = builder.positions.len() as u32;
+                    builder.positions.extend_from_slice(&positions[start as usize..end as usize]);
+                    builder.spans.push([at, builder.positions.len() as u32]);
+                    item.face = k as u32;
+                }
+                let mut bsp = Bsp { eps, ..Bsp::default() };
+                let (on, _) = builder.grow(&mut bsp, items, 0);
+                bsp.faces = builder.faces;
+                bsp.renumber_faces(on);
+                bsp
+            })
+            .collect();
+        (places, subtrees)
+    }
+
+    /// Builds the nodes of `items`' faces (all of them, in face order) into `bsp`
+    /// (depth first, front child first) and returns the faces lying in the nodes'
+    /// planes, node after node (numbered as in [`Builder::faces`]); each node's
+    /// `faces` is, until [`Bsp::renumber_faces`], its range of that list.
     ///
     /// The lists of the nodes still to build lie one after the other in one array,
     /// in the order of the work stack: the top's list, the next node to build, is
@@ -653,7 +815,11 @@ impl Builder {
     /// and, after it, its front child's (the top, built first), so that building
     /// allocates nothing per node (on `many`, the million lists' allocations and
     /// fresh pages were a second).
-    fn grow(mut self, bsp: &mut Bsp) -> Vec<u32> {
+    ///
+    /// A node whose list has fewer than `apart_below` faces is not built: its list
+    /// is set apart ([`Apart`]), with a placeholder node in its place, for
+    /// [`Builder::build_apart`].
+    fn grow(&mut self, bsp: &mut Bsp, mut items: Vec<Item>, apart_below: usize) -> (Vec<u32>, Vec<Apart>) {
         // Work stack of nodes to build.
         struct Work {
             /// The parent and whether this is its front child.
@@ -663,8 +829,8 @@ impl Builder {
             start: usize,
             depth: usize,
         }
-        let mut items: Vec<Item> = self.faces.iter().enumerate().map(|(fi, f)| Item::of(fi as u32, f)).collect();
         let mut on: Vec<u32> = Vec::new();
+        let mut apart = Vec::new();
         let mut stack = vec![Work { link: None, start: 0, depth: 1 }];
         let mut scratch = Scratch::default();
         while let Some(Work { link, start, depth }) = stack.pop() {
@@ -678,6 +844,17 @@ impl Builder {
                 }
             }
             bsp.stats.depth = bsp.stats.depth.max(depth);
+            if items.len() - start < apart_below {
+                let at = on.len() as u32;
+                bsp.nodes.push(BspNode {
+                    plane: Plane { normal: DVec3::ZERO, d: 0.0 },
+                    front: NONE,
+                    back: NONE,
+                    faces: at..at,
+                });
+                apart.push(Apart { place: node, depth, items: items.split_off(start) });
+                continue;
+            }
             let list = &items[start..];
             let mut cut = self.choose_plane(list, false, &mut scratch);
             if let Cut::Free { plane, axis } = cut {
@@ -737,8 +914,7 @@ impl Builder {
                 stack.push(Work { link: Some((node, true)), start: back, depth: depth + 1 });
             }
         }
-        bsp.faces = self.faces;
-        on
+        (on, apart)
     }
 
     /// Which side of a face plane face `fi` lies on: every vertex's distance.
@@ -967,6 +1143,16 @@ impl Builder {
         }
         out
     }
+}
+
+/// A subtree [`Builder::grow`] leaves to be built on its own.
+struct Apart {
+    /// Its placeholder node.
+    place: u32,
+    /// Its root's depth.
+    depth: usize,
+    /// Its root's list.
+    items: Vec<Item>,
 }
 
 /// [`Builder`]'s working space, kept from node to node.
@@ -1678,12 +1864,38 @@ mod tests {
         Some(format!("at byte {at}:\n built     ...{}\n reference ...{}", around(&a), around(&b)))
     }
 
-    /// The built trees are the same (`==`, and to the bit).
+    /// Runs `f` on a rayon pool of `threads` threads (1 to 3; made once).
+    fn on_pool<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {
+        static POOLS: std::sync::OnceLock<Vec<rayon::ThreadPool>> = std::sync::OnceLock::new();
+        let pools = POOLS
+            .get_or_init(|| (1..=3).map(|n| rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap()).collect());
+        pools[threads - 1].install(f)
+    }
+
+    /// The subtrees' sizes below which the tests build them apart ([`Bsp::build_apart`]):
+    /// none, large ones, small ones, single faces.
+    fn apart_sizes(n: usize) -> [usize; 4] {
+        [0, n / 3 + 1, n / 16 + 2, 2]
+    }
+
+    /// The built trees are the same (`==`, and to the bit): [`Bsp::build`] and
+    /// [`Bsp::build_apart`] at several sizes, on pools of 1, 2 and 3 threads.
     fn assert_same(faces: Vec<BspFace>) -> Result<(), TestCaseError> {
         let reference = Bsp::reference_build(faces.clone());
-        let built = Bsp::build(faces);
+        let built = Bsp::build(faces.clone());
         prop_assert!(built == reference, "trees differ: {:?}", difference(&built, &reference));
         prop_assert_eq!(difference(&built, &reference), None);
+        for apart_below in apart_sizes(faces.len()) {
+            for threads in 1..=3 {
+                let built = on_pool(threads, || Bsp::build_apart(faces.clone(), apart_below));
+                prop_assert!(
+                    built == reference,
+                    "apart below {apart_below}, {threads} threads: trees differ: {:?}",
+                    difference(&built, &reference)
+                );
+                prop_assert_eq!(difference(&built, &reference), None);
+            }
+        }
         Ok(())
     }
 
@@ -1712,9 +1924,34 @@ mod tests {
             let faces = random_faces(seed, n, grid);
             let built = Bsp::build(faces.clone());
             assert!(built.stats.splits > 0 || n < 2, "no split in case {seed}");
-            let reference = Bsp::reference_build(faces);
+            let reference = Bsp::reference_build(faces.clone());
             assert!(built == reference, "case {seed}: {:?}", difference(&built, &reference));
             assert_eq!(difference(&built, &reference), None, "case {seed}");
+            for apart_below in apart_sizes(n) {
+                for threads in 1..=3 {
+                    let built = on_pool(threads, || Bsp::build_apart(faces.clone(), apart_below));
+                    assert!(
+                        built == reference,
+                        "case {seed}, apart below {apart_below}, {threads} threads: {:?}",
+                        difference(&built, &reference)
+                    );
+                    assert_eq!(difference(&built, &reference), None, "case {seed}");
+                }
+            }
+        }
+    }
+
+    /// [`Bsp::build`] itself builds apart from [`APART_FROM`] faces: the tree is
+    /// the reference's, on pools of 1, 2 and 3 threads.
+    #[test]
+    fn the_parallel_build_builds_the_reference_tree() {
+        let faces = random_faces(5, APART_FROM + 500, 0.5);
+        let reference = Bsp::reference_build(faces.clone());
+        assert!(reference.stats.splits > 0);
+        for threads in 1..=3 {
+            let built = on_pool(threads, || Bsp::build(faces.clone()));
+            assert!(built == reference, "{threads} threads: {:?}", difference(&built, &reference));
+            assert_eq!(difference(&built, &reference), None, "{threads} threads");
         }
     }
 }
