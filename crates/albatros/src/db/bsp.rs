@@ -588,8 +588,7 @@ impl Bsp {
                 let start = out.len() as u32;
                 for &f in &on[node.faces.start as usize..node.faces.end as usize] {
                     let f = &mut faces[f as usize];
-                    let &mut BspFace { plane, material, instance, face, .. } = f;
-                    out.push(BspFace { vertices: std::mem::take(&mut f.vertices), plane, material, instance, face });
+                    out.push(BspFace { vertices: std::mem::take(&mut f.vertices), ..*f });
                 }
                 node.faces = start..out.len() as u32;
                 nodes.push(node);
@@ -682,12 +681,6 @@ fn extent(vs: &[BspVertex], axis: usize) -> [f64; 2] {
     [lo, hi]
 }
 
-/// Whether a face lying in a free plane faces its front.
-#[inline]
-fn faces_front(item: &Item, plane: &Plane) -> bool {
-    item.plane.normal.dot(plane.normal) >= 0.0
-}
-
 impl Item {
     /// The item of face number `face`.
     fn of(face: u32, f: &BspFace) -> Self {
@@ -770,8 +763,7 @@ impl Builder {
                     .iter()
                     .map(|item| {
                         let f = &mut self.faces[item.face as usize];
-                        let &mut BspFace { plane, material, instance, face, .. } = f;
-                        BspFace { vertices: std::mem::take(&mut f.vertices), plane, material, instance, face }
+                        BspFace { vertices: std::mem::take(&mut f.vertices), ..*f }
                     })
                     .collect();
                 (faces, items)
@@ -873,12 +865,7 @@ impl Builder {
             for r in start..items.len() {
                 let item = items[r];
                 let side = match cut {
-                    Cut::Free { axis, .. } => match self.free_side(&item, axis, &plane) {
-                        // A free plane: the face goes where its normal points.
-                        Side::On if faces_front(&item, &plane) => Side::Front,
-                        Side::On => Side::Back,
-                        side => side,
-                    },
+                    Cut::Free { axis, .. } => self.free_side(&item, axis, &plane),
                     // The face whose plane this is lies in it, whatever rounding says.
                     Cut::Face { owner, .. } if item.face == owner => Side::On,
                     Cut::Face { .. } => self.side(item.face, &plane),
@@ -938,8 +925,10 @@ impl Builder {
         }
     }
 
-    /// [`Builder::side`] for a free plane along `axis`, from the face's extent (the
-    /// same answer: see [`Item`]).
+    /// The side of a free plane along `axis` a face goes to: [`Builder::side`] from
+    /// the face's extent (the same answer: see [`Item`]), except that a face lying
+    /// in the plane goes where its normal points (never [`Side::On`]: from that side
+    /// it can hide only what lies behind the plane).
     #[inline]
     fn free_side(&self, item: &Item, axis: usize, plane: &Plane) -> Side {
         let [lo, hi] = item.extents[axis];
@@ -947,7 +936,8 @@ impl Builder {
             (true, true) => Side::Straddle,
             (true, false) => Side::Front,
             (false, true) => Side::Back,
-            (false, false) => Side::On,
+            (false, false) if item.plane.normal.dot(plane.normal) >= 0.0 => Side::Front,
+            (false, false) => Side::Back,
         }
     }
 
@@ -959,14 +949,8 @@ impl Builder {
             match self.free_side(item, axis, plane) {
                 Side::Straddle => return true,
                 Side::Front => f = true,
-                Side::Back => b = true,
-                Side::On => {
-                    if faces_front(item, plane) {
-                        f = true
-                    } else {
-                        b = true
-                    }
-                }
+                // (`free_side` never answers `On`.)
+                Side::Back | Side::On => b = true,
             }
             if f && b {
                 return true;
@@ -1069,15 +1053,9 @@ impl Builder {
         for item in sample {
             match self.free_side(item, axis, plane) {
                 Side::Front => f += 1,
-                Side::Back => b += 1,
+                // (`free_side` never answers `On`.)
+                Side::Back | Side::On => b += 1,
                 Side::Straddle => s += 1,
-                Side::On => {
-                    if faces_front(item, plane) {
-                        f += 1
-                    } else {
-                        b += 1
-                    }
-                }
             }
         }
         if f + s == 0 || b + s == 0 {
@@ -1130,8 +1108,7 @@ impl Builder {
                 let start = self.positions.len() as u32;
                 self.positions.extend(verts.iter().map(|v| v.position));
                 self.spans.push([start, self.positions.len() as u32]);
-                let &BspFace { plane, material, instance, face, .. } = &self.faces[fi as usize];
-                self.faces.push(BspFace { vertices: verts, plane, material, instance, face });
+                self.faces.push(BspFace { vertices: verts, ..self.faces[fi as usize] });
                 (self.faces.len() - 1) as u32
             };
             let item = Some(Item::of(idx, &self.faces[idx as usize]));
