@@ -868,7 +868,7 @@ impl Builder {
                     Cut::Free { axis, .. } => self.free_side(&item, axis, &plane),
                     // The face whose plane this is lies in it, whatever rounding says.
                     Cut::Face { owner, .. } if item.face == owner => Side::On,
-                    Cut::Face { .. } => self.side(item.face, &plane),
+                    Cut::Face { .. } => self.item_side(&item, &plane),
                 };
                 let (f, b) = match side {
                     Side::Front => (Some(item), None),
@@ -922,6 +922,44 @@ impl Builder {
             (true, false) => Side::Front,
             (false, true) => Side::Back,
             (false, false) => Side::On,
+        }
+    }
+
+    /// Which side of a face plane an item's face lies on: [`Builder::side`], from
+    /// the item's box when the box decides it (the same answer: see below), else
+    /// from every vertex.
+    ///
+    /// The box's corner farthest along the normal (each coordinate the extent's end
+    /// the normal's component points to) has a computed distance at least every
+    /// vertex's, and the nearest corner one at most: a term `n_i * p_i` rounds
+    /// monotonically in `p_i` (up for `n_i >= 0`, down otherwise), the sums and `- d`
+    /// round monotonically in each term (no fused multiply-add in this build), and
+    /// every vertex coordinate lies in its extent. Coordinates come from `f32` and
+    /// normals are unit, so no term overflows. So a nearest corner beyond `eps` in
+    /// front puts every vertex there ([`Side::Front`]), a farthest one beyond `eps`
+    /// behind puts every vertex behind ([`Side::Back`]), and both within `eps` put
+    /// every vertex within ([`Side::On`]).
+    #[inline]
+    fn item_side(&self, item: &Item, plane: &Plane) -> Side {
+        self.box_side(item, plane).unwrap_or_else(|| self.side(item.face, plane))
+    }
+
+    /// [`Builder::item_side`]'s answer from the item's box alone, `None` when the
+    /// box straddles `eps` on a side.
+    #[inline]
+    fn box_side(&self, item: &Item, plane: &Plane) -> Option<Side> {
+        let n = plane.normal.to_array();
+        let far = DVec3::from_array(std::array::from_fn(|axis| item.extents[axis][usize::from(n[axis] >= 0.0)]));
+        let near = DVec3::from_array(std::array::from_fn(|axis| item.extents[axis][usize::from(n[axis] < 0.0)]));
+        let (most, least) = (plane.distance(far), plane.distance(near));
+        if least > self.eps {
+            Some(Side::Front)
+        } else if most < -self.eps {
+            Some(Side::Back)
+        } else if most <= self.eps && least >= -self.eps {
+            Some(Side::On)
+        } else {
+            None
         }
     }
 
@@ -1068,7 +1106,7 @@ impl Builder {
     fn face_cost(&self, sample: &[Item], plane: &Plane) -> i64 {
         let (mut f, mut b, mut s) = (0i64, 0i64, 0i64);
         for item in sample {
-            match self.side(item.face, plane) {
+            match self.item_side(item, plane) {
                 Side::Front => f += 1,
                 Side::Back => b += 1,
                 Side::Straddle => s += 1,
@@ -1916,6 +1954,52 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A face plane's box pre-test ([`Builder::box_side`]) answers, when it
+    /// answers, what every vertex's distance does ([`Builder::side`]): random faces
+    /// against every face's plane, and against planes through their vertices (the
+    /// face's own, tilted a little, random, axes) moved by up to 2 `eps` either way
+    /// in halves (so vertices lie at and about the borders of `eps`). Each of its
+    /// three answers is given; widening a border by an `eps` fails it.
+    #[test]
+    fn the_box_side_is_every_vertex_side() {
+        let mut given = [0usize; 3];
+        for (seed, grid) in [(11, 0.0), (12, 0.5), (13, 2.0)] {
+            let faces = random_faces(seed, 200, grid);
+            let items: Vec<Item> = faces.iter().enumerate().map(|(i, f)| Item::of(i as u32, f)).collect();
+            let builder = Builder::new(faces);
+            let mut rng = Rng(seed);
+            let mut planes: Vec<Plane> = builder.faces.iter().map(|f| f.plane).collect();
+            for f in builder.faces.iter().take(40) {
+                for v in &f.vertices {
+                    let random = DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0))
+                        .normalize_or_zero();
+                    // The face's own plane tilted so that its vertices spread over
+                    // about an `eps`.
+                    let wobble = DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
+                    let tilted = (f.plane.normal + wobble * builder.eps).normalize();
+                    for normal in [f.plane.normal, tilted, random, DVec3::X, -DVec3::Z] {
+                        for k in [-2.0, -1.5, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5, 2.0] {
+                            planes.push(Plane { normal, d: normal.dot(v.position) + k * builder.eps });
+                        }
+                    }
+                }
+            }
+            for plane in &planes {
+                for item in &items {
+                    if let Some(side) = builder.box_side(item, plane) {
+                        assert_eq!(side, builder.side(item.face, plane), "face {} against {plane:?}", item.face);
+                        given[match side {
+                            Side::Front => 0,
+                            Side::Back => 1,
+                            _ => 2,
+                        }] += 1;
+                    }
+                }
+            }
+        }
+        assert!(given.iter().all(|&g| g > 0), "answers given (front, back, on): {given:?}");
     }
 
     /// [`Bsp::build`] itself builds apart from [`APART_FROM`] faces: the tree is
