@@ -22,8 +22,10 @@
 //! carrying its face's extent along each axis, centroid and plane, so that the
 //! tests of the free planes, which are most of the work, read the list in sequence
 //! and two numbers a face (a face is in front of `x = d` exactly when its greatest
-//! `x` is), and nothing is allocated per node. A face plane's test still computes
-//! every vertex's distance, from one array of the faces' positions. The tree is the
+//! `x` is), and nothing is allocated per node. A face plane's test reads the
+//! item's box first (its corners nearest and farthest along the normal bound every
+//! vertex's computed distance) and computes every vertex's distance, from one array
+//! of the faces' positions, only when the box straddles a border. The tree is the
 //! one the plain builder made (each face's vertices read at every test, a list per
 //! node), number for number: the tests check it against that builder.
 //!
