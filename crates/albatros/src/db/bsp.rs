@@ -389,9 +389,10 @@ impl Bsp {
     fn number_vertices(&mut self) {
         type Key = ([u64; 3], [u32; 3], u32);
         let number = |vertices: &[BspVertex]| {
-            let mut first: std::collections::HashMap<Key, u32> =
-                std::collections::HashMap::with_capacity(vertices.len());
-            let mut positions = std::collections::HashMap::new();
+            // (aHash rather than std's SipHash: the keys are our own numbers, no
+            // adversary's; the numbering follows first appearance, not the hash.)
+            let mut first: ahash::AHashMap<Key, u32> = ahash::AHashMap::with_capacity(vertices.len());
+            let mut positions = ahash::AHashMap::new();
             let mut shared = Vec::new();
             let ids: Vec<u32> = vertices
                 .iter()
