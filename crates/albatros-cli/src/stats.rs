@@ -113,6 +113,7 @@ pub fn run(args: StatsArgs) -> Result<()> {
             eprintln!("{}", path.display());
         }
     }
+    super::keep_till_exit(db);
     Ok(())
 }
 
