@@ -1339,38 +1339,79 @@ impl SubpixelProcessors {
     }
 
     /// [`Self::box_hidden`] in AVX2: cell by cell, row by row, the cell's mask with
-    /// the pixels outside the box set ([`box_outside_at_avx2`], the clip of every
-    /// AVX2 fragment) against all ones; the first cell with a box pixel not full
-    /// ends it (most polygons not hidden meet one in their first cell).
+    /// the pixels outside the box set against all ones; the first cell with a box
+    /// pixel not full ends it (most polygons not hidden meet one in their first
+    /// cell). Only the box's first and last cell column and row have pixels outside
+    /// it, and those pixels depend on the box's borders alone: their lanes
+    /// ([`BORDER_LANES`]) are read once a polygon, and a cell inside the box is its
+    /// mask alone (`box_outside_at_avx2`'s lanes for every cell, and the loops over
+    /// inclusive ranges, cost some 40 instructions a cell: `many` 960 x 540, 128.4 M
+    /// for 2.7 M cells).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     #[inline(never)]
     fn box_hidden_avx2(&self, poly: &SppPolygon) -> bool {
-        use std::arch::x86_64::{__m256i, _mm256_load_si256, _mm256_or_si256, _mm256_set1_epi16, _mm256_testc_si256};
+        use std::arch::x86_64::{
+            __m256i, _mm256_load_si256, _mm256_or_si256, _mm256_set1_epi16, _mm256_setzero_si256, _mm256_testc_si256,
+        };
         let [x0, x1, y0, y1] = poly.bbox;
         // An empty box (the box of a polygon with no finite vertex, say) is left to
         // the descent, as before: no `x1 - 1` below zero.
         if x1 <= x0 || y1 <= y0 {
             return false;
         }
+        let (c0, c1) = ((x0 / CELL_SIDE) as usize, ((x1 - 1) / CELL_SIDE) as usize);
+        let (r0, r1) = ((y0 / CELL_SIDE) as usize, ((y1 - 1) / CELL_SIDE) as usize);
+        let lanes = |table: &[Words16; 4], k: u32| {
+            // SAFETY: a table entry is 16 `u16` aligned to 32 bytes ([`Words16`]), the
+            // 32 bytes the aligned load reads.
+            #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
+            unsafe {
+                _mm256_load_si256(table[(k % CELL_SIDE) as usize].0.as_ptr().cast())
+            }
+        };
+        // The lanes outside the box in its first and last cell column (row); in one
+        // column (row) both.
+        let (left, right) = (lanes(&BORDER_LANES.0[0], x0), lanes(&BORDER_LANES.0[1], x1 - 1));
+        let (top, bottom) = (lanes(&BORDER_LANES.0[2], y0), lanes(&BORDER_LANES.0[3], y1 - 1));
         let ones = _mm256_set1_epi16(-1);
-        for cy in y0 / CELL_SIDE..=(y1 - 1) / CELL_SIDE {
-            let row = &self.masks[cy as usize * self.stride..];
-            for cx in x0 / CELL_SIDE..=(x1 - 1) / CELL_SIDE {
-                let mask_ptr: *const __m256i = row[cx as usize].0.as_ptr().cast();
-                // SAFETY: a cell's mask is 16 `u16` aligned to 32 bytes ([`Words16`]),
-                // the 32 bytes the aligned load reads.
-                #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
-                let mask = unsafe { _mm256_load_si256(mask_ptr) };
+        // The box's cells lie on the screen: the last one's index bounds them all.
+        let (first, last_row) = (r0 * self.stride, r1 * self.stride);
+        assert!(last_row + c1 < self.masks.len(), "a box off the screen");
+        let masks = self.masks.as_ptr();
+        let (mut row, mut outside_row) = (first, top);
+        loop {
+            if row == last_row {
+                outside_row = _mm256_or_si256(outside_row, bottom);
+            }
+            let (mut c, mut outside) = (c0, _mm256_or_si256(outside_row, left));
+            loop {
+                if c == c1 {
+                    outside = _mm256_or_si256(outside, right);
+                }
+                // SAFETY: cell `row + c` is one of the box's cells, whose last one's
+                // index is below the memory's length (asserted above); a cell's mask
+                // is 16 `u16` aligned to 32 bytes ([`Words16`]), the 32 bytes the
+                // aligned load reads.
+                #[allow(unsafe_code, reason = "an aligned load of a cell the assert above bounds")]
+                let mask = unsafe { _mm256_load_si256(masks.add(row + c).cast::<__m256i>()) };
                 // A box pixel not full: `!(mask | outside) & ones` is not zero (the
                 // test of `hidden_avx2`).
-                let outside = box_outside_at_avx2(cx * CELL_SIDE, cy * CELL_SIDE, &poly.lanes);
                 if _mm256_testc_si256(_mm256_or_si256(mask, outside), ones) == 0 {
                     return false;
                 }
+                if c == c1 {
+                    break;
+                }
+                c += 1;
+                outside = outside_row;
             }
+            if row == last_row {
+                return true;
+            }
+            row += self.stride;
+            outside_row = _mm256_setzero_si256();
         }
-        true
     }
 
     /// [`Self::process_to`] of a fragment that no edge crosses (a cell wholly inside
@@ -2249,6 +2290,33 @@ static LANE_MASKS: Aligned32<[[u16; 16]; 16]> = {
         i += 1;
     }
     Aligned32(m)
+};
+
+/// [`SubpixelProcessors::box_hidden_avx2`]'s pixels outside a box in its border
+/// cells, all ones in 16-bit lane `4 y + x`: `[0][k]` the columns `x < k` (a box
+/// whose first column is `k` in its cell), `[1][k]` the columns `x > k` (its last
+/// column `k`), `[2][k]` the rows `y < k`, `[3][k]` the rows `y > k`.
+#[cfg(target_arch = "x86_64")]
+static BORDER_LANES: Aligned32<[[Words16; 4]; 4]> = {
+    let mut t = [[Words16([0; 16]); 4]; 4];
+    let mut k = 0;
+    while k < 4 {
+        let mut lane = 0;
+        while lane < 16 {
+            let (x, y) = (lane % 4, lane / 4);
+            let outside = [x < k, x > k, y < k, y > k];
+            let mut side = 0;
+            while side < 4 {
+                if outside[side] {
+                    t[side][k].0[lane] = FULL;
+                }
+                side += 1;
+            }
+            lane += 1;
+        }
+        k += 1;
+    }
+    Aligned32(t)
 };
 
 /// A value aligned to 32 bytes, for the AVX2 copies' aligned loads and stores of a
