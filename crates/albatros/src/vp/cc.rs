@@ -148,6 +148,9 @@ pub struct ColorComputers<'a> {
     pub textures: &'a TextureMaps,
     /// The frame's texture set-ups ([`FrameList::textures`]).
     pub set_ups: &'a [PolyTexture],
+    /// The TAC's ROMs, found once for the frame ([`TacRom::get`], a lock's test
+    /// per call: ~11 instructions of a one-colour polygon's ~92).
+    rom: &'static TacRom,
     /// The AVX2 copy's set-up of the last polygon it coloured ([`PolyAvx2`]), made
     /// again when a cell of another polygon comes.
     #[cfg(target_arch = "x86_64")]
@@ -164,6 +167,7 @@ impl<'a> ColorComputers<'a> {
             footprint_scale: FOOTPRINT_FACTOR * frame.pixel_angle,
             textures,
             set_ups: &frame.textures,
+            rom: TacRom::get(),
             #[cfg(target_arch = "x86_64")]
             prepared: None,
         }
@@ -184,6 +188,7 @@ impl<'a> ColorComputers<'a> {
             footprint_scale,
             textures,
             set_ups,
+            rom: TacRom::get(),
             #[cfg(target_arch = "x86_64")]
             prepared: None,
         }
@@ -563,7 +568,7 @@ impl<'a> PolyAvx2<'a> {
             fog: splat3(cc.fog_color),
             inv_visibility: _mm256_set1_ps(cc.inv_visibility),
             fogged: cc.inv_visibility != 0.0,
-            rom: TacRom::get(),
+            rom: cc.rom,
         }
     }
 
@@ -783,7 +788,7 @@ impl<'a> CellShader<'a> {
             fog: cc.fog_color.to_array(),
             inv_visibility: cc.inv_visibility,
             footprint_scale: cc.footprint_scale,
-            rom: TacRom::get(),
+            rom: cc.rom,
         }
     }
 

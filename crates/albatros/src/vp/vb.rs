@@ -1070,16 +1070,34 @@ impl VideoBuffer {
             return;
         }
         let Memory::Log8 { codes, .. } = &self.memory else { return };
+        use crate::hint::LINE;
         let width = self.width as usize;
-        let base = codes.as_ptr();
-        for y in y0 as usize..y1 as usize {
+        // The box's first row's first word, and the words from a row's first to its last.
+        let mut first = codes.as_ptr().wrapping_add(y0 as usize * width + x0 as usize);
+        let span = (x1 - x0 - 1) as usize;
+        let line = |p: *const Word8| p as usize / LINE;
+        if width.is_multiple_of(LINE / std::mem::size_of::<Word8>()) {
+            // Rows a whole number of lines apart: every row of the box meets its
+            // lines as the first does (`many`'s boxes, ~5 rows each: the row's
+            // test once, not per row).
+            let two = line(first) != line(first.wrapping_add(span));
+            for _ in y0..y1 {
+                crate::hint::prefetch(first.cast());
+                if two {
+                    crate::hint::prefetch(first.wrapping_add(span).cast());
+                }
+                first = first.wrapping_add(width);
+            }
+            return;
+        }
+        for _ in y0..y1 {
             // The row's first and last words: the box is at most two lines wide.
-            let (first, last) =
-                (base.wrapping_add(y * width + x0 as usize), base.wrapping_add(y * width + x1 as usize - 1));
+            let last = first.wrapping_add(span);
             crate::hint::prefetch(first.cast());
-            if first as usize / crate::hint::LINE != last as usize / crate::hint::LINE {
+            if line(first) != line(last) {
                 crate::hint::prefetch(last.cast());
             }
+            first = first.wrapping_add(width);
         }
     }
 
@@ -1108,20 +1126,23 @@ impl VideoBuffer {
     /// `color` encoded for [`Self::accumulate_prepared`]: the VP encodes the
     /// background's colour once a frame rather than once per cell (default's
     /// colour + VB 145.6 -> 143.3 M instructions).
+    ///
+    /// Once a one-colour polygon too (at its first visible cell): the 8-bit code's
+    /// word from the registers made once ([`F1Log8`]), the mode matched once.
+    #[inline]
     pub fn prepare_flat(&self, color: Vec3) -> FlatColor {
-        let word = match &self.memory {
+        match &self.memory {
+            Memory::Log8 { .. } => {
+                let encoder = F1Log8::get().encoder;
+                let word = color.to_array().map(|c| u16::from(encoder.encode(c)));
+                FlatColor { color, word, word8: Word8::pack(word) }
+            }
             Memory::Log { scale, .. } => {
                 let f1 = LogF1::new(scale);
-                color.to_array().map(|c| f1.encode(c))
+                FlatColor { color, word: color.to_array().map(|c| f1.encode(c)), word8: 0 }
             }
-            Memory::Log8 { scale, .. } => {
-                let encoder = scale.encoder8.as_ref().expect("the 8-bit encoder").tables();
-                color.to_array().map(|c| u16::from(encoder.encode(c)))
-            }
-            Memory::Float(_) | Memory::Linear { .. } => [0; 3],
-        };
-        let word8 = if matches!(self.memory, Memory::Log8 { .. }) { Word8::pack(word) } else { 0 };
-        FlatColor { color, word, word8 }
+            Memory::Float(_) | Memory::Linear { .. } => FlatColor { color, word: [0; 3], word8: 0 },
+        }
     }
 
     /// [`Self::accumulate_flat`] of a colour [`Self::prepare_flat`] encoded for this
@@ -1147,6 +1168,33 @@ impl VideoBuffer {
             }
         }
         self.accumulate_prepared_cell(vis, flat);
+    }
+
+    /// [`Self::accumulate_prepared`] of each of `cells` in turn: the cells of one
+    /// run of a polygon of one colour, [`Self::prepare_flat`] encoded once for the
+    /// polygon. The memory's mode is matched and F1's registers are set up once for
+    /// the run, not per cell (`many`'s triangles, of one or two visible cells each:
+    /// before, each cell paid the colour's encoding, the dispatch and F1's set-up,
+    /// ~80 instructions of its ~270).
+    pub fn accumulate_prepared_run(&mut self, cells: &[Visible], flat: &FlatColor) {
+        self.accumulate_prepared_runs(std::iter::once((cells, *flat)));
+    }
+
+    /// [`Self::accumulate_prepared_run`] of each of `runs` in turn (the queued runs
+    /// of one-colour polygons that follow one another), in one call: F1's
+    /// registers set up once for them all (`many`: ~1.4 cells a run).
+    #[inline]
+    pub fn accumulate_prepared_runs<'c>(&mut self, runs: impl Iterator<Item = (&'c [Visible], FlatColor)>) {
+        let width = self.width as usize;
+        if let Memory::Log8 { scale, codes } = &mut self.memory {
+            accumulate_log8_flat_runs(codes, width, runs, LogF1::new(scale));
+            return;
+        }
+        for (cells, flat) in runs {
+            for vis in cells {
+                self.accumulate_prepared(vis, &flat);
+            }
+        }
     }
 
     /// [`Self::accumulate_prepared`] of any cell in any mode.
@@ -1528,13 +1576,43 @@ fn accumulate_log8_flat(codes: &mut [Word8], width: usize, vis: &Visible, f1: Lo
         // for every function (this branch is compiled only then).
         #[allow(unsafe_code, reason = "a function compiled for SSE4.1 in a build that requires it")]
         unsafe {
-            return accumulate_log8_flat_sse41(codes, width, vis, &f1, Word8::pack(word));
+            let cell = (std::slice::from_ref(vis), Word8::pack(word));
+            return accumulate_log8_flat_sse41(codes, width, std::iter::once(cell), &f1);
         }
     }
     accumulate_log_flat(codes, width, vis, f1, word);
 }
 
-/// [`accumulate_log`] of one word `word` for the cell, its visible pixels one by
+/// [`accumulate_log8_flat`] of the cells of each run in turn, its colour encoded
+/// beforehand ([`VideoBuffer::accumulate_prepared_runs`]): in one call of the
+/// SSE4.1 copy where the build has it, else cell by cell.
+#[inline(always)]
+fn accumulate_log8_flat_runs<'c>(
+    codes: &mut [Word8],
+    width: usize,
+    runs: impl Iterator<Item = (&'c [Visible], FlatColor)>,
+    f1: LogF1,
+) {
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse4.1"))]
+    {
+        // SAFETY: `accumulate_log8_flat_sse41` needs SSE4.1, which the build enables
+        // for every function (this block is compiled only then).
+        #[allow(unsafe_code, reason = "a function compiled for SSE4.1 in a build that requires it")]
+        unsafe {
+            accumulate_log8_flat_sse41(codes, width, runs.map(|(cells, flat)| (cells, flat.word8)), &f1);
+        }
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "sse4.1")))]
+    for (cells, flat) in runs {
+        for vis in cells {
+            accumulate_log_flat(codes, width, vis, f1, flat.word);
+        }
+    }
+}
+
+/// [`accumulate_log`] of each run's word for each of its cells in turn (the
+/// queued runs of one-colour polygons, or one cell), the constants set up once: a whole cell of first
+/// fragments filled with the word, any other cell's visible pixels one by
 /// one (by their bits), each pixel's three components side by side in the 32-bit
 /// lanes of one SSE register: `from_code` of the word once for the cell; per
 /// pixel, `ln S` added, and for a later fragment eq. 4 with the stored word (`T` read
@@ -1550,7 +1628,12 @@ fn accumulate_log8_flat(codes: &mut [Word8], width: usize, vis: &Visible, f1: Lo
 #[cfg(all(target_arch = "x86_64", target_feature = "sse4.1"))]
 #[target_feature(enable = "sse4.1")]
 #[inline]
-fn accumulate_log8_flat_sse41(codes: &mut [Word8], width: usize, vis: &Visible, f1: &LogF1, word: Word8) {
+fn accumulate_log8_flat_sse41<'c>(
+    codes: &mut [Word8],
+    width: usize,
+    runs: impl Iterator<Item = (&'c [Visible], Word8)>,
+    f1: &LogF1,
+) {
     let arith = f1.arith;
     // Bytes 0, 4 and 8 (the lanes' low bytes, the codes) to bytes 0, 1, 2; byte 3 zero.
     const NONE: i8 = -1;
@@ -1564,44 +1647,61 @@ fn accumulate_log8_flat_sse41(codes: &mut [Word8], width: usize, vis: &Visible, 
             _mm_cmpeq_epi32(q, _mm_setzero_si128()),
         )
     };
-    let new = from_code(_mm_cvtepu8_epi32(_mm_cvtsi32_si128(word as i32)));
     let (round, one, below) =
         (_mm_set1_epi32(FINE_PER_CODE / 2 - 1), _mm_set1_epi32(arith.one), _mm_set1_epi32(arith.floor - 1));
     let cap = _mm_set1_epi32(SOFTPLUS_PADDED as i32 - 1);
-    let mut pixels = visible_pixels(vis);
-    while pixels != 0 {
-        let i = pixels.trailing_zeros() as usize;
-        pixels &= pixels - 1;
-        let (set, first) = (vis.sets[i], vis.first >> i & 1 == 1);
-        // (A visible pixel is on the screen.)
-        let at = (vis.py as usize + i / 4) * width + vis.px as usize + i % 4;
-        let n = set.count_ones();
-        if first && n == AREA_DENOMINATOR {
-            codes[at] = word;
-            continue;
+    for (cells, word) in runs {
+        let new = from_code(_mm_cvtepu8_epi32(_mm_cvtsi32_si128(word as i32)));
+        for vis in cells {
+            if vis.first == FULL && vis.sets == [FULL; 16] {
+                // A whole cell of first fragments: its rows filled with the word, in one
+                // slice (one bounds check); its 16 pixels are on the screen.
+                let side = CELL_SIDE as usize;
+                let start = vis.py as usize * width + vis.px as usize;
+                let cell = &mut codes[start..start + (side - 1) * width + side];
+                for row in 0..side {
+                    cell[row * width..row * width + side].fill(word);
+                }
+                continue;
+            }
+            let mut pixels = visible_pixels(vis);
+            while pixels != 0 {
+                let i = pixels.trailing_zeros() as usize;
+                pixels &= pixels - 1;
+                let (set, first) = (vis.sets[i], vis.first >> i & 1 == 1);
+                // (A visible pixel is on the screen.)
+                // (The pixel's word found once, one bounds test.)
+                let slot = &mut codes[(vis.py as usize + i / 4) * width + vis.px as usize + i % 4];
+                let n = set.count_ones();
+                if first && n == AREA_DENOMINATOR {
+                    *slot = word;
+                    continue;
+                }
+                let ln_s = f1.ln_area[(n as usize - 1) & (AREA_DENOMINATOR as usize - 1)];
+                let mut v = _mm_add_epi32(new, _mm_set1_epi32(ln_s));
+                if !first {
+                    let stored = from_code(_mm_cvtepu8_epi32(_mm_cvtsi32_si128(*slot as i32)));
+                    let (hi, lo) = (_mm_max_epi32(v, stored), _mm_min_epi32(v, stored));
+                    let d = _mm_min_epi32(_mm_sub_epi32(hi, lo), cap);
+                    // `T[d]` of each component's lane (`d` in `0..SOFTPLUS_PADDED` after the
+                    // clamp); the fourth lane, whose byte the word leaves out, read not at all.
+                    let t = |k: i32| i32::from(arith.softplus[k as usize & (SOFTPLUS_PADDED - 1)]);
+                    let t = _mm_setr_epi32(
+                        t(_mm_extract_epi32::<0>(d)),
+                        t(_mm_extract_epi32::<1>(d)),
+                        t(_mm_extract_epi32::<2>(d)),
+                        0,
+                    );
+                    v = _mm_add_epi32(hi, t);
+                }
+                // `LogArith::store`.
+                let odd = _mm_and_si128(_mm_srai_epi32::<{ LOG_FRAC_BITS as i32 }>(v), _mm_set1_epi32(1));
+                let rounded = _mm_srai_epi32::<{ LOG_FRAC_BITS as i32 }>(_mm_add_epi32(_mm_add_epi32(v, round), odd));
+                let code = _mm_min_epi32(_mm_max_epi32(rounded, _mm_set1_epi32(1)), one);
+                let code = _mm_and_si128(code, _mm_cmpgt_epi32(v, below));
+                *slot = _mm_cvtsi128_si32(_mm_shuffle_epi8(code, to_word)) as u32;
+            }
         }
-        let ln_s = f1.ln_area[(n as usize - 1) & (AREA_DENOMINATOR as usize - 1)];
-        let mut v = _mm_add_epi32(new, _mm_set1_epi32(ln_s));
-        if !first {
-            let stored = from_code(_mm_cvtepu8_epi32(_mm_cvtsi32_si128(codes[at] as i32)));
-            let (hi, lo) = (_mm_max_epi32(v, stored), _mm_min_epi32(v, stored));
-            let d = _mm_min_epi32(_mm_sub_epi32(hi, lo), cap);
-            // `T[d]` of each lane (`d` in `0..SOFTPLUS_PADDED` after the clamp).
-            let t = |k: i32| i32::from(arith.softplus[k as usize & (SOFTPLUS_PADDED - 1)]);
-            let t = _mm_setr_epi32(
-                t(_mm_extract_epi32::<0>(d)),
-                t(_mm_extract_epi32::<1>(d)),
-                t(_mm_extract_epi32::<2>(d)),
-                t(_mm_extract_epi32::<3>(d)),
-            );
-            v = _mm_add_epi32(hi, t);
-        }
-        // `LogArith::store`.
-        let odd = _mm_and_si128(_mm_srai_epi32::<{ LOG_FRAC_BITS as i32 }>(v), _mm_set1_epi32(1));
-        let rounded = _mm_srai_epi32::<{ LOG_FRAC_BITS as i32 }>(_mm_add_epi32(_mm_add_epi32(v, round), odd));
-        let code = _mm_min_epi32(_mm_max_epi32(rounded, _mm_set1_epi32(1)), one);
-        let code = _mm_and_si128(code, _mm_cmpgt_epi32(v, below));
-        codes[at] = _mm_cvtsi128_si32(_mm_shuffle_epi8(code, to_word)) as u32;
     }
 }
 
@@ -4423,7 +4523,8 @@ mod tests {
 
     /// The background's F1 with its colour encoded once (in the call, or
     /// beforehand) gives the per-pixel F1's words, in every mode, on random cells
-    /// and colours (black, white, above one).
+    /// and colours (black, white, above one); so do runs of cells of one colour
+    /// ([`VideoBuffer::accumulate_prepared_run`], runs of 1 to 9 cells).
     #[test]
     fn accumulate_flat_matches_accumulate() {
         let mut rng = Rng(0xF1A7);
@@ -4433,7 +4534,30 @@ mod tests {
             let (mut a, mut b) = (VideoBuffer::new(10, 6, mode), VideoBuffer::new(10, 6, mode));
             // The colour encoded beforehand (the VP's background).
             let mut c = VideoBuffer::new(10, 6, mode);
+            // Runs of cells of one colour, taken at the run's end.
+            let mut d = VideoBuffer::new(10, 6, mode);
+            let (mut run, mut run_color, mut run_left) = (Vec::new(), Vec3::ZERO, 0);
+            let new_color = |rng: &mut Rng| {
+                Vec3::from_array(std::array::from_fn(|_| match rng.next() % 6 {
+                    0 => 0.0,
+                    1 => 1.0,
+                    2 => 1.25,
+                    _ => (rng.next() % 10_000) as f32 / 10_000.0,
+                }))
+            };
             for _ in 0..3000 {
+                if run_left == 0 {
+                    let flat = d.prepare_flat(run_color);
+                    d.accumulate_prepared_run(&run, &flat);
+                    run.clear();
+                    // (Each run checked as it ends: a later first write would hide it.)
+                    for (x, y) in (0..6).flat_map(|y| (0..10).map(move |x| (x, y))) {
+                        assert_eq!(a.linear(x, y), d.linear(x, y), "{mode} pixel ({x}, {y}): a run");
+                    }
+                    run_color = new_color(&mut rng);
+                    run_left = 1 + rng.next() % 9;
+                }
+                run_left -= 1;
                 let (px, py) = ((rng.next() % 3) as u32 * 4, (rng.next() % 2) as u32 * 4);
                 let sets: [u16; 16] = std::array::from_fn(|i| {
                     let (x, y) = (px + i as u32 % 4, py + i as u32 / 4);
@@ -4444,12 +4568,7 @@ mod tests {
                         _ => rng.next() as u16,
                     }
                 });
-                let color = Vec3::from_array(std::array::from_fn(|_| match rng.next() % 6 {
-                    0 => 0.0,
-                    1 => 1.0,
-                    2 => 1.25,
-                    _ => (rng.next() % 10_000) as f32 / 10_000.0,
-                }));
+                let color = run_color;
                 // Whole cells' first fragments too (the cells wholly on the screen).
                 let whole = px <= 4 && py == 0 && rng.next().is_multiple_of(4);
                 let (sets, first) = if whole { ([FULL; 16], FULL) } else { (sets, rng.next() as u16) };
@@ -4458,11 +4577,15 @@ mod tests {
                 b.accumulate_flat(&vis, color);
                 let flat = c.prepare_flat(color);
                 c.accumulate_prepared(&vis, &flat);
+                run.push(vis);
             }
+            let flat = d.prepare_flat(run_color);
+            d.accumulate_prepared_run(&run, &flat);
             for y in 0..6 {
                 for x in 0..10 {
                     assert_eq!(a.linear(x, y), b.linear(x, y), "{mode} pixel ({x}, {y})");
                     assert_eq!(a.linear(x, y), c.linear(x, y), "{mode} pixel ({x}, {y}): prepared");
+                    assert_eq!(a.linear(x, y), d.linear(x, y), "{mode} pixel ({x}, {y}): runs");
                 }
             }
         }
