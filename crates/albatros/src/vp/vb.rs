@@ -1170,19 +1170,13 @@ impl VideoBuffer {
         self.accumulate_prepared_cell(vis, flat);
     }
 
-    /// [`Self::accumulate_prepared`] of each of `cells` in turn: the cells of one
-    /// run of a polygon of one colour, [`Self::prepare_flat`] encoded once for the
-    /// polygon. The memory's mode is matched and F1's registers are set up once for
-    /// the run, not per cell (`many`'s triangles, of one or two visible cells each:
-    /// before, each cell paid the colour's encoding, the dispatch and F1's set-up,
-    /// ~80 instructions of its ~270).
-    pub fn accumulate_prepared_run(&mut self, cells: &[Visible], flat: &FlatColor) {
-        self.accumulate_prepared_runs(std::iter::once((cells, *flat)));
-    }
-
-    /// [`Self::accumulate_prepared_run`] of each of `runs` in turn (the queued runs
-    /// of one-colour polygons that follow one another), in one call: F1's
-    /// registers set up once for them all (`many`: ~1.4 cells a run).
+    /// [`Self::accumulate_prepared`] of each cell of each of `runs` in turn: the
+    /// queued runs of one-colour polygons that follow one another, each run's cells
+    /// with its colour [`Self::prepare_flat`] encoded once for the polygon. The
+    /// memory's mode is matched and F1's registers are set up once for them all, not
+    /// per cell (`many`'s triangles, of one or two visible cells each, ~1.4 cells a
+    /// run: before, each cell paid the colour's encoding, the dispatch and F1's
+    /// set-up, ~80 instructions of its ~270).
     #[inline]
     pub fn accumulate_prepared_runs<'c>(&mut self, runs: impl Iterator<Item = (&'c [Visible], FlatColor)>) {
         let width = self.width as usize;
@@ -4524,7 +4518,8 @@ mod tests {
     /// The background's F1 with its colour encoded once (in the call, or
     /// beforehand) gives the per-pixel F1's words, in every mode, on random cells
     /// and colours (black, white, above one); so do runs of cells of one colour
-    /// ([`VideoBuffer::accumulate_prepared_run`], runs of 1 to 9 cells).
+    /// ([`VideoBuffer::accumulate_prepared_runs`]: 1 to 3 runs of 1 to 9 cells a
+    /// call, each run its own colour).
     #[test]
     fn accumulate_flat_matches_accumulate() {
         let mut rng = Rng(0xF1A7);
@@ -4534,9 +4529,10 @@ mod tests {
             let (mut a, mut b) = (VideoBuffer::new(10, 6, mode), VideoBuffer::new(10, 6, mode));
             // The colour encoded beforehand (the VP's background).
             let mut c = VideoBuffer::new(10, 6, mode);
-            // Runs of cells of one colour, taken at the run's end.
+            // Runs of cells of one colour, taken a few runs at a time.
             let mut d = VideoBuffer::new(10, 6, mode);
             let (mut run, mut run_color, mut run_left) = (Vec::new(), Vec3::ZERO, 0);
+            let (mut runs, mut batch): (Vec<(Vec<Visible>, FlatColor)>, usize) = (Vec::new(), 1);
             let new_color = |rng: &mut Rng| {
                 Vec3::from_array(std::array::from_fn(|_| match rng.next() % 6 {
                     0 => 0.0,
@@ -4547,12 +4543,15 @@ mod tests {
             };
             for _ in 0..3000 {
                 if run_left == 0 {
-                    let flat = d.prepare_flat(run_color);
-                    d.accumulate_prepared_run(&run, &flat);
-                    run.clear();
-                    // (Each run checked as it ends: a later first write would hide it.)
-                    for (x, y) in (0..6).flat_map(|y| (0..10).map(move |x| (x, y))) {
-                        assert_eq!(a.linear(x, y), d.linear(x, y), "{mode} pixel ({x}, {y}): a run");
+                    runs.push((std::mem::take(&mut run), d.prepare_flat(run_color)));
+                    if runs.len() >= batch {
+                        d.accumulate_prepared_runs(runs.iter().map(|(cells, flat)| (&cells[..], *flat)));
+                        runs.clear();
+                        batch = 1 + (rng.next() % 3) as usize;
+                        // (Checked after each call: a later first write would hide it.)
+                        for (x, y) in (0..6).flat_map(|y| (0..10).map(move |x| (x, y))) {
+                            assert_eq!(a.linear(x, y), d.linear(x, y), "{mode} pixel ({x}, {y}): runs");
+                        }
                     }
                     run_color = new_color(&mut rng);
                     run_left = 1 + rng.next() % 9;
@@ -4579,8 +4578,8 @@ mod tests {
                 c.accumulate_prepared(&vis, &flat);
                 run.push(vis);
             }
-            let flat = d.prepare_flat(run_color);
-            d.accumulate_prepared_run(&run, &flat);
+            runs.push((run, d.prepare_flat(run_color)));
+            d.accumulate_prepared_runs(runs.iter().map(|(cells, flat)| (&cells[..], *flat)));
             for y in 0..6 {
                 for x in 0..10 {
                     assert_eq!(a.linear(x, y), b.linear(x, y), "{mode} pixel ({x}, {y})");
