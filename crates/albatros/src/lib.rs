@@ -14,6 +14,7 @@ pub mod db;
 pub mod frame;
 pub mod gp;
 mod hint;
+pub mod isa;
 pub mod matrix;
 pub mod model;
 pub mod peer;

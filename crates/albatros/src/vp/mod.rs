@@ -985,10 +985,10 @@ mod tests {
                             })
                             .collect();
                         let work: u64 = vp.column_work.iter().map(|&w| u64::from(w)).sum();
-                        (cells, marks, work)
+                        (cells, marks, work, vp.spp.small_route_avx2())
                     };
-                    let (cells, marks, work) = run(true);
-                    let (plain_cells, plain_marks, plain_work) = run(false);
+                    let (cells, marks, work, tested) = run(true);
+                    let (plain_cells, plain_marks, plain_work, _) = run(false);
                     let what = format!("{name} {width} x {height}, masks {masks:?}, hierarchical {hierarchical}");
                     assert_eq!(cells.len(), plain_cells.len(), "{what}: visible cells");
                     assert!(cells == plain_cells, "{what}: visible cells differ");
@@ -996,7 +996,10 @@ mod tests {
                         assert!(marks == plain_marks, "{what}: marks differ");
                     }
                     assert!(work <= plain_work, "{what}: work {work} against {plain_work}");
-                    if name == "many" {
+                    // (Only the AVX2 route's small polygons are tested whole: on a
+                    // processor without AVX2, or with the AVX-512 copies asked for,
+                    // [`crate::isa`], none is passed over.)
+                    if name == "many" && tested {
                         assert!(work < plain_work, "{what}: no polygon passed over");
                     }
                 }

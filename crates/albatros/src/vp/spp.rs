@@ -127,7 +127,8 @@ pub struct SubpixelProcessors {
     /// so that a code masked to 6 bits needs no bounds check.
     thin: Box<[Words16; 64]>,
     /// The processor has what [`Self::table_code_avx2`] is compiled for
-    /// ([`has_avx2`]) and no AVX-512 (whose vertex pixels [`vertex_words`] takes):
+    /// ([`has_avx2`]), and the AVX-512 copy was not asked for ([`crate::isa`]: with
+    /// it, the plain route, whose vertex pixels [`vertex_words`] takes in AVX-512):
     /// detected once here, a check per fragment cost some 20 instructions of the
     /// fragment's dispatch. Private, so only the detection sets it.
     avx2: bool,
@@ -161,7 +162,8 @@ pub struct SppPolygon {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code, reason = "the AVX2 routes"))]
 enum Route {
-    /// [`SubpixelProcessors::process_plain`]: no AVX2, or [`SppMode::Exact`].
+    /// [`SubpixelProcessors::process_plain`]: no AVX2, [`SppMode::Exact`], or the
+    /// AVX-512 copies asked for ([`crate::isa`]).
     Plain,
     /// [`SubpixelProcessors::process_avx2`].
     Avx2,
@@ -811,7 +813,7 @@ impl SubpixelProcessors {
             cleared_share: None,
             clean: false,
             thin: Box::new(std::array::from_fn(|t| Words16(thinning(t as u8)))),
-            avx2: has_avx2() && !has_avx512(),
+            avx2: has_avx2() && !(has_avx512() && crate::isa::avx512_asked()),
             routes: [Route::Plain; 2],
         };
         if s.avx2 && mode != SppMode::Exact {
@@ -819,6 +821,13 @@ impl SubpixelProcessors {
         }
         s.clear();
         s
+    }
+
+    /// Whether small polygons take the AVX2 route ([`Route::Avx2Small`]), the one
+    /// whose boxes [`Self::box_hidden`] tests.
+    #[cfg(test)]
+    pub(crate) fn small_route_avx2(&self) -> bool {
+        self.routes[1] == Route::Avx2Small
     }
 
     /// Clears the mask memory for a new frame; pixels off the screen, and pixels

@@ -1828,14 +1828,15 @@ pub struct FusedF1 {
 }
 
 impl VideoBuffer {
-    /// [`FusedF1`] when the VB holds the 8-bit code and the processor has AVX2 and
-    /// not AVX-512 (whose colour computers hand their cells to [`Self::accumulate`]).
+    /// [`FusedF1`] when the VB holds the 8-bit code and the processor has AVX2, unless
+    /// the AVX-512 colour computers run ([`crate::isa`]: they hand their cells to
+    /// [`Self::accumulate`]).
     #[inline]
     pub fn fused_f1(&self) -> Option<FusedF1> {
         #[cfg(target_arch = "x86_64")]
         if matches!(self.memory, Memory::Log8 { .. })
             && std::is_x86_feature_detected!("avx2")
-            && !std::is_x86_feature_detected!("avx512f")
+            && !(std::is_x86_feature_detected!("avx512f") && crate::isa::avx512_asked())
         {
             return Some(FusedF1 { regs: F1Log8::get() });
         }
