@@ -1100,11 +1100,10 @@ impl CellProcessors {
     /// order, and the same marks and queued cells, as the descent: here for the
     /// start at the polygon's size ([`Self::start_at_size`]: the cells in Z order by
     /// [`StartBlocks`], each cell's mark read from level `from` on, a cell wholly
-    /// inside marked and filled, the others split, [`Self::last_split`]); for the
-    /// descent from a bounding cell of level L - 1 see [`Self::last_cells_of`]. A
-    /// split's decisions are each
-    /// child's alone: an edge codes a child IN when its line lies at or before the
-    /// child's near border on the polygon's side, OUT when at or beyond its far one
+    /// inside marked and filled, the others split as [`Self::last_split`] splits);
+    /// for the descent from a bounding cell of level L - 1 see
+    /// [`Self::last_cells_of`]. A split's decisions are each child's alone: an edge
+    /// codes a child IN when its line lies at or before the child's near border on the polygon's side, OUT when at or beyond its far one
     /// (the tests' `edge_code`), by the V of the child's own stretch, which is the edge's V at
     /// the child's borders (exact, [`super::edge`]); so a cell of level L - 1 is OUT
     /// for an edge (dropped by the start) when its four children are, IN when they
@@ -1193,8 +1192,13 @@ impl CellProcessors {
     /// [`Self::last_cells`] for the descent from the bounding cell `cell` of level
     /// L - 1 (Z-order index `z`), whose marks the caller has read: the window is
     /// that one cell, split ([`Self::last_split`]) with no walk over
-    /// [`StartBlocks`], which a polygon within one cell of 8 pixels (most of
-    /// `many`'s at 480 x 270) does not need.
+    /// [`StartBlocks`] (its block's Z-order index, word and cell), which a polygon
+    /// within one cell of 8 pixels does not need (session 26, with the window's box
+    /// by tables, [`window_box`]: `many` 480 x 270 raster 1733.1 → 1710.3 M
+    /// instructions, terrain 272.0 → 270.9 M). [`Self::last_cells`] keeps its own
+    /// copy of the split: through [`Self::last_split`] there, the compiler loaded
+    /// the sink's state for each cell rather than for each block (terrain's raster
+    /// +2.3 M).
     #[inline(always)]
     fn last_cells_of(&mut self, cell: Cell, z: usize, poly: &GqPolygon, spp: &mut impl FragmentSink) {
         let codes = LastCells::new(self.avx2, poly.edges, cell.x * 8, cell.y * 8, 0, 0, poly.bbox);
@@ -1908,8 +1912,11 @@ impl LastCells {
     /// Every edge's lines up to the most of any (its window's rows or columns), each
     /// edge's sets then cut to its own lines, as [`Self::new_plain`] codes them; the
     /// lanes past the edges are cleared, as there. Out of line (it cannot be inlined
-    /// into the descent, compiled for the baseline); `many` 480 x 270, a frame: the
-    /// raster's instructions M → M (note in the module's history).
+    /// into the descent, compiled for the baseline), some 150 instructions for a
+    /// triangle in one row of cells of level L - 1, where edge by edge took some 250
+    /// (session 26, a frame, one thread: `many` 480 x 270 raster 1710.3 → 1693.2 M
+    /// instructions, the whole VP 1923.9 → 1889.1 M; terrain 1920 x 1080 raster
+    /// 270.9 → 269.8 M, the VP 418.5 → 415.7 M).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     #[inline(never)]
@@ -1939,7 +1946,8 @@ impl LastCells {
         // The most lines of any edge, and each TG's lines as a set of the window:
         // a vertical TG's lines are rows, a horizontal one's columns.
         let lines = 2 * columns.max(rows) + 2;
-        let (rows_set, columns_set) = (!0u64 >> (8 * (6 - 2 * rows)), (0xFFu64 >> (6 - 2 * columns)) * 0x0101_0101_0101_0101);
+        let (rows_set, columns_set) =
+            (!0u64 >> (8 * (6 - 2 * rows)), (0xFFu64 >> (6 - 2 * columns)) * 0x0101_0101_0101_0101);
         // SAFETY: AVX2 operations (this function is compiled for them, its callers
         // detect them); the loads and stores are of the arrays of `codes` and of the
         // locals above, four 8-byte lanes each (four 4-byte lanes for `kind`); the
@@ -1969,25 +1977,23 @@ impl LastCells {
             let step = _mm256_slli_epi64::<2>(slope);
             const _: () = assert!(CELL_SIDE == 4);
             let down = _mm256_cmpgt_epi64(zero, step);
-            let span = _mm256_add_epi64(
-                _mm256_sub_epi64(_mm256_xor_si256(step, down), down),
-                set((1 << CELL_V_BITS) - 1),
-            );
+            let span =
+                _mm256_add_epi64(_mm256_sub_epi64(_mm256_xor_si256(step, down), down), set((1 << CELL_V_BITS) - 1));
             let mut lo = _mm256_add_epi64(v0, _mm256_and_si256(step, down));
             let mut far = _mm256_add_epi64(lo, span);
             let across = set(-(1i64 << CELL_V_BITS));
             let di = _mm256_blendv_epi8(step, across, vertical);
             let dj = _mm256_blendv_epi8(across, step, vertical);
-            let kind = _mm256_or_si256(
-                _mm256_slli_epi64::<8>(flags),
-                _mm256_and_si256(down, set(i64::from(KIND_DOWN))),
-            );
-            let st = |a: &mut [i64; 4], v: __m256i| _mm256_storeu_si256(a.as_mut_ptr().cast(), _mm256_and_si256(v, valid));
+            let kind =
+                _mm256_or_si256(_mm256_slli_epi64::<8>(flags), _mm256_and_si256(down, set(i64::from(KIND_DOWN))));
+            let st =
+                |a: &mut [i64; 4], v: __m256i| _mm256_storeu_si256(a.as_mut_ptr().cast(), _mm256_and_si256(v, valid));
             st(&mut codes.v0, v0);
             st(&mut codes.step, step);
             st(&mut codes.di, di);
             st(&mut codes.dj, dj);
-            let kind = _mm256_permutevar8x32_epi32(_mm256_and_si256(kind, valid), _mm256_set_epi32(7, 5, 3, 1, 6, 4, 2, 0));
+            let kind =
+                _mm256_permutevar8x32_epi32(_mm256_and_si256(kind, valid), _mm256_set_epi32(7, 5, 3, 1, 6, 4, 2, 0));
             _mm_storeu_si128(codes.kind.as_mut_ptr().cast(), _mm256_castsi256_si128(kind));
             // Line `k`'s sets of edge `e` at `LINE_CELLS[vertical][k][first][count]`:
             // flat, `144 vertical + 18 k + 9 first + count`; the least V's count
