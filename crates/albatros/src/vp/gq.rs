@@ -543,8 +543,6 @@ pub struct CellProcessors {
     /// Whether [`Self::descend_filling`] passes over a polygon whose box its sink
     /// finds hidden ([`FragmentSink::box_hidden`]); off for the VP's tests.
     pub(super) hidden_boxes: bool,
-    /// Whether the processor has AVX2, for [`LastCells::new`] (detected once).
-    avx2: bool,
 }
 
 /// A level-L cell handed to the SPPs, with the edges that cross it; or, from
@@ -665,7 +663,6 @@ impl CellProcessors {
             queued: 0,
             at_once: true,
             hidden_boxes: true,
-            avx2: has_avx2(),
         }
     }
 
@@ -1125,7 +1122,7 @@ impl CellProcessors {
         let last = self.root_level;
         let level = last - 1;
         let n = poly.edges.len();
-        let codes = LastCells::new(self.avx2, poly.edges, cx0 * 8, cy0 * 8, columns, rows, poly.bbox);
+        let codes = LastCells::new(poly.edges, cx0 * 8, cy0 * 8, columns, rows, poly.bbox);
         let list = 4 * self.stride * last as usize;
         // With the level in use, its own mark decides ([`Self::covered`]): an aligned
         // 8 x 8 block's marks are one word, read once for its cells.
@@ -1201,7 +1198,7 @@ impl CellProcessors {
     /// +2.3 M).
     #[inline(always)]
     fn last_cells_of(&mut self, cell: Cell, z: usize, poly: &GqPolygon, spp: &mut impl FragmentSink) {
-        let codes = LastCells::new(self.avx2, poly.edges, cell.x * 8, cell.y * 8, 0, 0, poly.bbox);
+        let codes = LastCells::new(poly.edges, cell.x * 8, cell.y * 8, 0, 0, poly.bbox);
         self.last_split(&codes, cell, z, 0, poly, spp);
     }
 
@@ -1632,18 +1629,6 @@ fn derive_start_list(starts: &[StartEdge], out: &mut [ActiveEdge], dx: u32, dy: 
     Some(len)
 }
 
-/// Whether the processor has AVX2 ([`LastCells::new_avx2`]).
-#[cfg(target_arch = "x86_64")]
-fn has_avx2() -> bool {
-    std::is_x86_feature_detected!("avx2")
-}
-
-/// [`has_avx2`] elsewhere than on x86-64: never.
-#[cfg(not(target_arch = "x86_64"))]
-fn has_avx2() -> bool {
-    false
-}
-
 /// The most edges of a polygon whose last-level cells the filling descent finds at
 /// once ([`CellProcessors::last_cells`]): triangles and quadrilaterals.
 const AT_ONCE_EDGES: usize = 4;
@@ -1671,7 +1656,6 @@ const WINDOW_SPAN: u32 = 4;
 /// their places in the window, from a table ([`LINE_CELLS`]). IN and OUT by LR, as the GQ ROM's codes of each child
 /// (the tests' `edge_code`). Only the lines the start's cells reach are coded (the others'
 /// bits are never read).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct LastCells {
     /// Per edge, V at the window's first border along it, relative to its first
     /// border across V.
@@ -1853,24 +1837,16 @@ impl LastCells {
     /// `0 ..= rows` are read, the cells the polygon's box `bbox` (inside those
     /// cells) does not meet taken as OUT ([`window_box`]).
     ///
-    /// With `avx2` (the processor has it, [`CellProcessors`]'s detection) the four
-    /// edges go in the lanes of AVX2 registers ([`Self::new_avx2`]); else edge by
-    /// edge ([`Self::new_plain`], the definition, tested against it).
+    /// Edge by edge: the four edges in the lanes of AVX2 registers (each line's
+    /// counts of every edge in one register, the sets gathered from [`LINE_CELLS`];
+    /// out of line, after a detection) cut the instructions (session 26, one frame:
+    /// `many` 480 x 270 whole VP 1923.9 → 1889.1 M, 960 x 540 raster 1841 → 1809 M
+    /// with the rest of that session's changes) but not the time on this machine's
+    /// AMD EPYC: `many` 480 x 270 raster 489 / 487 ms → 506 / 511 ms (gathers), 492 /
+    /// 490 / 484 → 497 / 505 / 489 ms with the sets by scalar loads (which counted
+    /// 1730.9 M); left out (branch `gq26`, commit `88d6c75`).
     #[inline(always)]
-    fn new(avx2: bool, edges: &[EdgeCode], wx: u32, wy: u32, columns: u32, rows: u32, bbox: [u32; 4]) -> Self {
-        #[cfg(target_arch = "x86_64")]
-        if avx2 {
-            // SAFETY: `avx2` is set only when the processor has AVX2.
-            #[allow(unsafe_code, reason = "a function compiled for AVX2, after detection")]
-            return unsafe { Self::new_avx2(edges, wx, wy, columns, rows, bbox) };
-        }
-        let _ = avx2;
-        Self::new_plain(edges, wx, wy, columns, rows, bbox)
-    }
-
-    /// [`Self::new`] edge by edge.
-    #[inline(always)]
-    fn new_plain(edges: &[EdgeCode], wx: u32, wy: u32, columns: u32, rows: u32, bbox: [u32; 4]) -> Self {
+    fn new(edges: &[EdgeCode], wx: u32, wy: u32, columns: u32, rows: u32, bbox: [u32; 4]) -> Self {
         debug_assert!(edges.len() <= AT_ONCE_EDGES && columns < WINDOW_SPAN && rows < WINDOW_SPAN);
         let mut codes = Self {
             v0: [0; AT_ONCE_EDGES],
@@ -1901,142 +1877,6 @@ impl LastCells {
             codes.kind[e] = if vertical { KIND_VERTICAL } else { 0 }
                 | if edge.lr() { KIND_LR } else { 0 }
                 | if step < 0 { KIND_DOWN } else { 0 };
-        }
-        codes
-    }
-
-    /// [`Self::new`] in AVX2, the (at most four) edges in the lanes of registers:
-    /// V at the window's first border, the steps and the kinds at once, and the lines
-    /// of every edge at once, each line's four cell counts (least and greatest V of
-    /// four edges) in one register and its eight sets gathered from [`LINE_CELLS`].
-    /// Every edge's lines up to the most of any (its window's rows or columns), each
-    /// edge's sets then cut to its own lines, as [`Self::new_plain`] codes them; the
-    /// lanes past the edges are cleared, as there. Out of line (it cannot be inlined
-    /// into the descent, compiled for the baseline), some 150 instructions for a
-    /// triangle in one row of cells of level L - 1, where edge by edge took some 250
-    /// (session 26, a frame, one thread: `many` 480 x 270 raster 1710.3 → 1693.2 M
-    /// instructions, the whole VP 1923.9 → 1889.1 M; terrain 1920 x 1080 raster
-    /// 270.9 → 269.8 M, the VP 418.5 → 415.7 M).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    #[inline(never)]
-    fn new_avx2(edges: &[EdgeCode], wx: u32, wy: u32, columns: u32, rows: u32, bbox: [u32; 4]) -> Self {
-        use std::arch::x86_64::*;
-        debug_assert!(edges.len() <= AT_ONCE_EDGES && columns < WINDOW_SPAN && rows < WINDOW_SPAN);
-        const _: () = assert!(AT_ONCE_EDGES == 4);
-        const _: () = assert!(KIND_VERTICAL == 1 << 8 && KIND_LR == 2 << 8);
-        let n = edges.len().min(AT_ONCE_EDGES);
-        let (mut origin, mut slope, mut flags) = ([0i64; 4], [0i64; 4], [0i64; 4]);
-        for (e, edge) in edges.iter().enumerate().take(AT_ONCE_EDGES) {
-            origin[e] = edge.origin().0;
-            slope[e] = edge.slope.0;
-            flags[e] = edge.tg_lr() as i64;
-        }
-        let mut codes = Self {
-            v0: [0; AT_ONCE_EDGES],
-            step: [0; AT_ONCE_EDGES],
-            di: [0; AT_ONCE_EDGES],
-            dj: [0; AT_ONCE_EDGES],
-            cross: [0; AT_ONCE_EDGES],
-            kind: [0; AT_ONCE_EDGES],
-            outside: 0,
-            inside: 0,
-            n: edges.len(),
-        };
-        // The most lines of any edge, and each TG's lines as a set of the window:
-        // a vertical TG's lines are rows, a horizontal one's columns.
-        let lines = 2 * columns.max(rows) + 2;
-        let (rows_set, columns_set) =
-            (!0u64 >> (8 * (6 - 2 * rows)), (0xFFu64 >> (6 - 2 * columns)) * 0x0101_0101_0101_0101);
-        // SAFETY: AVX2 operations (this function is compiled for them, its callers
-        // detect them); the loads and stores are of the arrays of `codes` and of the
-        // locals above, four 8-byte lanes each (four 4-byte lanes for `kind`); the
-        // gathers' indices are `LINE_CELLS`' (flat, 2 x 8 x 2 x 9 words): the TG, the
-        // line (below 8), the first or second set and a count clamped to `0..=8`.
-        #[allow(unsafe_code, reason = "AVX2 loads, stores and gathers within the arrays named")]
-        unsafe {
-            let ld = |a: &[i64; 4]| _mm256_loadu_si256(a.as_ptr().cast());
-            let (origin, slope, flags) = (ld(&origin), ld(&slope), ld(&flags));
-            let set = |v: i64| _mm256_set1_epi64x(v);
-            let (one, two, zero) = (set(1), set(2), _mm256_setzero_si256());
-            let valid = _mm256_cmpgt_epi64(set(n as i64), _mm256_set_epi64x(3, 2, 1, 0));
-            let vertical = _mm256_cmpeq_epi64(_mm256_and_si256(flags, one), one);
-            let lr = _mm256_cmpeq_epi64(_mm256_and_si256(flags, two), two);
-            // Along the edge's lines (`t0`) and across (`u0`): (wx, wy) or (wy, wx).
-            let swap = _mm256_and_si256(set(i64::from(wx ^ wy)), vertical);
-            let t0 = _mm256_xor_si256(set(i64::from(wx)), swap);
-            let u0 = _mm256_xor_si256(set(i64::from(wy)), swap);
-            // slope * t0 with `t0` below 2^31: the slope's low half unsigned, its high
-            // half signed, each by `t0`.
-            let product = _mm256_add_epi64(
-                _mm256_mul_epu32(slope, t0),
-                _mm256_slli_epi64::<32>(_mm256_mul_epi32(_mm256_srli_epi64::<32>(slope), t0)),
-            );
-            const _: () = assert!(EDGE_FRAC_BITS == 32);
-            let v0 = _mm256_sub_epi64(_mm256_add_epi64(origin, product), _mm256_slli_epi64::<32>(u0));
-            let step = _mm256_slli_epi64::<2>(slope);
-            const _: () = assert!(CELL_SIDE == 4);
-            let down = _mm256_cmpgt_epi64(zero, step);
-            let span =
-                _mm256_add_epi64(_mm256_sub_epi64(_mm256_xor_si256(step, down), down), set((1 << CELL_V_BITS) - 1));
-            let mut lo = _mm256_add_epi64(v0, _mm256_and_si256(step, down));
-            let mut far = _mm256_add_epi64(lo, span);
-            let across = set(-(1i64 << CELL_V_BITS));
-            let di = _mm256_blendv_epi8(step, across, vertical);
-            let dj = _mm256_blendv_epi8(across, step, vertical);
-            let kind =
-                _mm256_or_si256(_mm256_slli_epi64::<8>(flags), _mm256_and_si256(down, set(i64::from(KIND_DOWN))));
-            let st =
-                |a: &mut [i64; 4], v: __m256i| _mm256_storeu_si256(a.as_mut_ptr().cast(), _mm256_and_si256(v, valid));
-            st(&mut codes.v0, v0);
-            st(&mut codes.step, step);
-            st(&mut codes.di, di);
-            st(&mut codes.dj, dj);
-            let kind =
-                _mm256_permutevar8x32_epi32(_mm256_and_si256(kind, valid), _mm256_set_epi32(7, 5, 3, 1, 6, 4, 2, 0));
-            _mm_storeu_si128(codes.kind.as_mut_ptr().cast(), _mm256_castsi256_si128(kind));
-            // Line `k`'s sets of edge `e` at `LINE_CELLS[vertical][k][first][count]`:
-            // flat, `144 vertical + 18 k + 9 first + count`; the least V's count
-            // (first 1) in lanes 0-3, the greatest's (first 0) in lanes 4-7.
-            let tg = _mm256_and_si256(vertical, set(144));
-            let tg = _mm256_permutevar8x32_epi32(tg, _mm256_set_epi32(6, 4, 2, 0, 6, 4, 2, 0));
-            let mut index = _mm256_add_epi32(tg, _mm256_set_epi32(0, 0, 0, 0, 9, 9, 9, 9));
-            let table = LINE_CELLS.as_ptr().cast::<i64>();
-            let (mut low, mut high) = (zero, zero);
-            let (eight, zero32) = (_mm256_set1_epi32(8), _mm256_setzero_si256());
-            // The high halves in order: lanes 0-3 `lo`'s, 4-7 `far`'s.
-            let order = _mm256_set_epi32(7, 6, 3, 2, 5, 4, 1, 0);
-            for _ in 0..lines {
-                // The high halves `floor(V / 2^32)` of `lo` and `far`, then
-                // `floor(V / 2^CELL_V_BITS)` clamped to `0..=8`.
-                let halves = _mm256_castps_si256(_mm256_shuffle_ps::<0b11_01_11_01>(
-                    _mm256_castsi256_ps(lo),
-                    _mm256_castsi256_ps(far),
-                ));
-                let counts = _mm256_min_epi32(_mm256_max_epi32(_mm256_srai_epi32::<2>(halves), zero32), eight);
-                let at = _mm256_add_epi32(_mm256_permutevar8x32_epi32(counts, order), index);
-                low = _mm256_or_si256(low, _mm256_i32gather_epi64::<8>(table, _mm256_castsi256_si128(at)));
-                high = _mm256_or_si256(high, _mm256_i32gather_epi64::<8>(table, _mm256_extracti128_si256::<1>(at)));
-                lo = _mm256_add_epi64(lo, step);
-                far = _mm256_add_epi64(far, step);
-                index = _mm256_add_epi32(index, _mm256_set1_epi32(18));
-            }
-            // Each edge's own lines only.
-            let own = _mm256_blendv_epi8(set(columns_set as i64), set(rows_set as i64), vertical);
-            let (low, high) = (_mm256_and_si256(low, own), _mm256_and_si256(high, own));
-            let inside = _mm256_blendv_epi8(low, high, lr);
-            let outside = _mm256_blendv_epi8(high, low, lr);
-            let cross = _mm256_andnot_si256(_mm256_or_si256(inside, outside), valid);
-            _mm256_storeu_si256(codes.cross.as_mut_ptr().cast(), cross);
-            // Past the edges: IN, not OUT.
-            let inside = _mm256_or_si256(inside, _mm256_xor_si256(valid, set(-1)));
-            let outside = _mm256_and_si256(outside, valid);
-            let (i2, o2) = (
-                _mm_and_si128(_mm256_castsi256_si128(inside), _mm256_extracti128_si256::<1>(inside)),
-                _mm_or_si128(_mm256_castsi256_si128(outside), _mm256_extracti128_si256::<1>(outside)),
-            );
-            codes.inside = (_mm_cvtsi128_si64(i2) & _mm_extract_epi64::<1>(i2)) as u64;
-            codes.outside = (_mm_cvtsi128_si64(o2) | _mm_extract_epi64::<1>(o2)) as u64 | !window_box(bbox, wx, wy);
         }
         codes
     }
@@ -2785,49 +2625,6 @@ mod tests {
     /// [`children_in_box`] is the children whose pixel squares meet the box: every
     /// box of a 32-pixel square that meets the cell (its precondition), around cells
     /// of sides 2-16.
-    /// [`LastCells::new_avx2`] gives what [`LastCells::new_plain`] does (every field,
-    /// the lanes past the edges cleared): one to four random edges (either TG and
-    /// LR, steep and shallow, through points in and around the window), windows of
-    /// 1 to 4 cells of level L - 1 each way at random places, boxes within them.
-    #[cfg(target_arch = "x86_64")]
-    #[test]
-    fn last_cells_avx2_are_the_plain() {
-        if !has_avx2() {
-            return;
-        }
-        let mut next = xorshift(0x5EED_CE11_5A1D_0B0E_u64);
-        let snap = i64::from(SNAP_ONE);
-        let root_side = 1024;
-        for k in 0..200_000 {
-            let (columns, rows) = (next(4) as u32, next(4) as u32);
-            let (wx, wy) = (8 * next(100) as u32, 8 * next(100) as u32);
-            let (ww, wh) = (8 * (columns + 1), 8 * (rows + 1));
-            let point = |next: &mut dyn FnMut(u64) -> u64| {
-                let x = i64::from(wx) * snap - 8 * snap + next((u64::from(ww) + 16) * snap as u64) as i64;
-                let y = i64::from(wy) * snap - 8 * snap + next((u64::from(wh) + 16) * snap as u64) as i64;
-                (ScreenFx(x as i32), ScreenFx(y as i32))
-            };
-            let count = 1 + next(4) as usize;
-            let edges: Vec<EdgeCode> = (0..count)
-                .filter_map(|_| {
-                    let (a, b) = (point(&mut next), point(&mut next));
-                    EdgeCode::new(a, b, next(2) == 0, root_side)
-                })
-                .collect();
-            // A box in the window reaching its last cell of level L - 1 each way.
-            let x0 = wx + next(u64::from(8 * columns + 8)) as u32;
-            let x1 = (wx + 8 * columns + 1 + next(7) as u32).max(x0 + 1);
-            let y0 = wy + next(u64::from(8 * rows + 8)) as u32;
-            let y1 = (wy + 8 * rows + 1 + next(7) as u32).max(y0 + 1);
-            let bbox = [x0.min(x1 - 1), x1, y0.min(y1 - 1), y1];
-            let want = LastCells::new_plain(&edges, wx, wy, columns, rows, bbox);
-            // SAFETY: the processor has AVX2 (above).
-            #[allow(unsafe_code, reason = "a function compiled for AVX2, after detection")]
-            let got = unsafe { LastCells::new_avx2(&edges, wx, wy, columns, rows, bbox) };
-            assert_eq!(got, want, "case {k}: {columns} {rows} {bbox:?}");
-        }
-    }
-
     /// [`window_box`] (its tables) is the set of the window's last-level cells that
     /// meet the box, by the definition, for every box in a window, at two corners.
     #[test]
