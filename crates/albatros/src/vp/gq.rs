@@ -899,11 +899,11 @@ impl CellProcessors {
             let (cx0, cy0) = (x0 >> 3, y0 >> 3);
             let (columns, rows) = (((x1 - 1) >> 3) - cx0, ((y1 - 1) >> 3) - cy0);
             if start.level + 1 == self.root_level {
-                self.last_cells(start.x, start.y, 0, 0, None, poly, spp);
+                self.last_cells_of(start, start_z, poly, spp);
                 return;
             }
             if start.level + 1 < self.root_level && columns < WINDOW_SPAN && rows < WINDOW_SPAN {
-                self.last_cells(cx0, cy0, columns, rows, Some(start.level + 1), poly, spp);
+                self.last_cells(cx0, cy0, columns, rows, start.level + 1, poly, spp);
                 return;
             }
         }
@@ -1094,14 +1094,13 @@ impl CellProcessors {
     /// `(cx0, cy0)` in one step ([`LastCells`]), not by a split of each cell of
     /// level L - 1 edge by edge (the start's list of each cell, `child_codes`, the
     /// children's lists written for every edge). The same fragments in the same
-    /// order, and the same marks and queued cells, as the descent: `from` `None` for
-    /// the descent from the bounding cell `(cx0, cy0)` (whose marks the caller has
-    /// read: it is split, [`Self::split_step`]), `Some(from)` for the start at the
-    /// polygon's size ([`Self::start_at_size`]: the cells in Z order by
+    /// order, and the same marks and queued cells, as the descent: here for the
+    /// start at the polygon's size ([`Self::start_at_size`]: the cells in Z order by
     /// [`StartBlocks`], each cell's mark read from level `from` on, a cell wholly
-    /// inside marked and filled, the others split). A split's decisions are each
-    /// child's alone: an edge codes a child IN when its line lies at or before the
-    /// child's near border on the polygon's side, OUT when at or beyond its far one
+    /// inside marked and filled, the others split as [`Self::last_split`] splits);
+    /// for the descent from a bounding cell of level L - 1 see
+    /// [`Self::last_cells_of`]. A split's decisions are each child's alone: an edge
+    /// codes a child IN when its line lies at or before the child's near border on the polygon's side, OUT when at or beyond its far one
     /// (the tests' `edge_code`), by the V of the child's own stretch, which is the edge's V at
     /// the child's borders (exact, [`super::edge`]); so a cell of level L - 1 is OUT
     /// for an edge (dropped by the start) when its four children are, IN when they
@@ -1116,7 +1115,7 @@ impl CellProcessors {
         cy0: u32,
         columns: u32,
         rows: u32,
-        from: Option<u32>,
+        from: u32,
         poly: &GqPolygon,
         spp: &mut impl FragmentSink,
     ) {
@@ -1132,7 +1131,7 @@ impl CellProcessors {
         for i in 0..blocks.count {
             let (bz, bx, by, cells) = blocks.block(i);
             let mut open = cells;
-            if from.is_some() && one_read {
+            if one_read {
                 open &= !self.memories[level as usize].word(bz);
             }
             for (z, dx, dy) in blocks.cells(bz, bx, by, open) {
@@ -1141,15 +1140,13 @@ impl CellProcessors {
                 // and `b + 9`.
                 let b = 2 * dx + 16 * dy;
                 let (outside, inside) = (children_bits(codes.outside, b), children_bits(codes.inside, b));
-                if let Some(from) = from {
-                    if !one_read && self.covered(z, level, from) {
-                        continue;
-                    }
-                    if inside == 0xF {
-                        // Wholly inside: as the start at the polygon's size does.
-                        self.start_inside(cell, z, poly.opaque, spp);
-                        continue;
-                    }
+                if !one_read && self.covered(z, level, from) {
+                    continue;
+                }
+                if inside == 0xF {
+                    // Wholly inside: as the start at the polygon's size does.
+                    self.start_inside(cell, z, poly.opaque, spp);
+                    continue;
                 }
                 // The split of `cell` ([`Self::split_step`], its children last-level;
                 // the children the box does not meet are OUT in `codes`, where the split
@@ -1186,6 +1183,73 @@ impl CellProcessors {
                     });
                 }
             }
+        }
+    }
+
+    /// [`Self::last_cells`] for the descent from the bounding cell `cell` of level
+    /// L - 1 (Z-order index `z`), whose marks the caller has read: the window is
+    /// that one cell, split ([`Self::last_split`]) with no walk over
+    /// [`StartBlocks`] (its block's Z-order index, word and cell), which a polygon
+    /// within one cell of 8 pixels does not need (session 26, with the window's box
+    /// by tables, [`window_box`]: `many` 480 x 270 raster 1733.1 → 1710.3 M
+    /// instructions, terrain 272.0 → 270.9 M). [`Self::last_cells`] keeps its own
+    /// copy of the split: through [`Self::last_split`] there, the compiler loaded
+    /// the sink's state for each cell rather than for each block (terrain's raster
+    /// +2.3 M).
+    #[inline(always)]
+    fn last_cells_of(&mut self, cell: Cell, z: usize, poly: &GqPolygon, spp: &mut impl FragmentSink) {
+        let codes = LastCells::new(poly.edges, cell.x * 8, cell.y * 8, 0, 0, poly.bbox);
+        self.last_split(&codes, cell, z, 0, poly, spp);
+    }
+
+    /// The split ([`Self::split_step`]) of the window's cell `cell` of level L - 1
+    /// (Z-order index `z`, its children at bits `b`, `b + 1`, `b + 8`, `b + 9` of
+    /// `codes`): its children are last-level, those the box does not meet OUT in
+    /// `codes`, where the split takes them as masked (the same marks and cells).
+    #[inline(always)]
+    fn last_split(
+        &mut self,
+        codes: &LastCells,
+        cell: Cell,
+        z: usize,
+        b: u32,
+        poly: &GqPolygon,
+        spp: &mut impl FragmentSink,
+    ) {
+        let last = self.root_level;
+        let n = poly.edges.len();
+        let list = 4 * self.stride * last as usize;
+        let m = u32::from(self.memories[last as usize].children(z));
+        if m == 0xF {
+            return;
+        }
+        let (outside, inside) = (children_bits(codes.outside, b), children_bits(codes.inside, b));
+        // (A child the box does not meet is OUT, so not IN: the split's mask.)
+        let cri = !m & !outside & 0xF;
+        let ci = cri & inside;
+        if poly.opaque && self.masks.has(last) {
+            self.memories[last as usize].set_children(z, ci as u8);
+        }
+        let mut todo = cri;
+        while todo != 0 {
+            let c = todo.trailing_zeros();
+            todo &= todo - 1;
+            if ci >> c & 1 == 1 {
+                if self.hierarchical && poly.opaque {
+                    self.inside[last as usize].push(4 * z + c as usize);
+                    self.queued |= 1 << last;
+                }
+                spp.fragment(Fragment::inside_child(cell, c, poly.bbox));
+                continue;
+            }
+            let len = codes.list(b + (c & 1) + 8 * (c >> 1), &mut self.lists[list..list + n]);
+            spp.fragment(Fragment {
+                px: (cell.x * 2 + (c & 1)) * 4,
+                py: (cell.y * 2 + (c >> 1)) * 4,
+                active: &self.lists[list..list + len],
+                cells: ONE_CELL,
+                bbox: poly.bbox,
+            });
         }
     }
 
@@ -1709,17 +1773,55 @@ fn line_sets_plain(table: &[[[u64; 9]; 2]; 8], mut lo: i64, step: i64, span: i64
 /// meets, as a set of the window: the columns of cells from `x0`'s to `x1 - 1`'s,
 /// the rows likewise. The split treats the others as masked ([`children_in_box`]):
 /// their codes clip to nothing; [`CellProcessors::last_cells`] takes them as OUT
-/// (so not IN), once a polygon rather than by comparisons a cell.
+/// (so not IN), once a polygon rather than by comparisons a cell. The columns'
+/// and the rows' sets from two tables ([`WINDOW_COLUMNS`], [`WINDOW_ROWS`]; by
+/// shifts and a product they cost some 30 instructions a polygon, `many`'s every
+/// small triangle; tested against [`window_box_plain`]).
 #[inline(always)]
 fn window_box(bbox: [u32; 4], wx: u32, wy: u32) -> u64 {
     let [x0, x1, y0, y1] = bbox;
     let (i0, i1) = ((x0 - wx) / CELL_SIDE, (x1 - 1 - wx) / CELL_SIDE);
     let (j0, j1) = ((y0 - wy) / CELL_SIDE, (y1 - 1 - wy) / CELL_SIDE);
     debug_assert!(i0 <= i1 && i1 < 8 && j0 <= j1 && j1 < 8);
+    WINDOW_COLUMNS[(i0 | i1 << 3) as usize & 63] & WINDOW_ROWS[(j0 | j1 << 3) as usize & 63]
+}
+
+/// [`window_box`] by shifts (for the tables and tests).
+const fn window_box_plain(i0: u32, i1: u32, j0: u32, j1: u32) -> u64 {
     let columns = (0xFFu64 >> (7 - i1) & 0xFF << i0) * 0x0101_0101_0101_0101;
     let rows = !0u64 >> (8 * (7 - j1)) & !0u64 << (8 * j0);
     columns & rows
 }
+
+/// [`window_box`]'s columns `i0 ..= i1` of the window (every row), at `i0 | i1 << 3`
+/// (empty for `i0 > i1`).
+const WINDOW_COLUMNS: [u64; 64] = {
+    let mut table = [0; 64];
+    let mut k = 0;
+    while k < 64 {
+        let (i0, i1) = (k as u32 & 7, k as u32 >> 3);
+        if i0 <= i1 {
+            table[k] = window_box_plain(i0, i1, 0, 7);
+        }
+        k += 1;
+    }
+    table
+};
+
+/// [`window_box`]'s rows `j0 ..= j1` of the window (every column), at `j0 | j1 << 3`
+/// (empty for `j0 > j1`).
+const WINDOW_ROWS: [u64; 64] = {
+    let mut table = [0; 64];
+    let mut k = 0;
+    while k < 64 {
+        let (j0, j1) = (k as u32 & 7, k as u32 >> 3);
+        if j0 <= j1 {
+            table[k] = window_box_plain(0, 7, j0, j1);
+        }
+        k += 1;
+    }
+    table
+};
 
 /// The four children of a window's cell of level L - 1 in a set of [`LastCells`]
 /// (`b = 2 dx + 16 dy`): child `c = dx + 2 dy` at bit `c`.
@@ -1734,6 +1836,15 @@ impl LastCells {
     /// is pixel `(wx, wy)`, where the cells of level L - 1 `0 ..= columns` by
     /// `0 ..= rows` are read, the cells the polygon's box `bbox` (inside those
     /// cells) does not meet taken as OUT ([`window_box`]).
+    ///
+    /// Edge by edge: the four edges in the lanes of AVX2 registers (each line's
+    /// counts of every edge in one register, the sets gathered from [`LINE_CELLS`];
+    /// out of line, after a detection) cut the instructions (session 26, one frame:
+    /// `many` 480 x 270 whole VP 1923.9 → 1889.1 M, 960 x 540 raster 1841 → 1809 M
+    /// with the rest of that session's changes) but not the time on this machine's
+    /// AMD EPYC: `many` 480 x 270 raster 489 / 487 ms → 506 / 511 ms (gathers), 492 /
+    /// 490 / 484 → 497 / 505 / 489 ms with the sets by scalar loads (which counted
+    /// 1730.9 M); left out (branch `gq26`, commit `88d6c75`).
     #[inline(always)]
     fn new(edges: &[EdgeCode], wx: u32, wy: u32, columns: u32, rows: u32, bbox: [u32; 4]) -> Self {
         debug_assert!(edges.len() <= AT_ONCE_EDGES && columns < WINDOW_SPAN && rows < WINDOW_SPAN);
@@ -2514,6 +2625,29 @@ mod tests {
     /// [`children_in_box`] is the children whose pixel squares meet the box: every
     /// box of a 32-pixel square that meets the cell (its precondition), around cells
     /// of sides 2-16.
+    /// [`window_box`] (its tables) is the set of the window's last-level cells that
+    /// meet the box, by the definition, for every box in a window, at two corners.
+    #[test]
+    fn window_box_is_the_cells_meeting_the_box() {
+        for (wx, wy) in [(0u32, 0u32), (24, 40)] {
+            for x0 in 0..32 {
+                for x1 in x0 + 1..=32 {
+                    for y0 in 0..32 {
+                        for y1 in y0 + 1..=32 {
+                            let want = (0..64u32).fold(0u64, |w, bit| {
+                                let (i, j) = (bit & 7, bit >> 3);
+                                let meets = 4 * i < x1 && 4 * i + 4 > x0 && 4 * j < y1 && 4 * j + 4 > y0;
+                                w | u64::from(meets) << bit
+                            });
+                            let got = window_box([wx + x0, wx + x1, wy + y0, wy + y1], wx, wy);
+                            assert_eq!(got, want, "{x0} {x1} {y0} {y1}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn children_in_box_meet_the_box() {
         for shift in 1..=3u32 {
