@@ -657,7 +657,9 @@ impl<'a> PolyAvx2<'a> {
     fn at_q(&self, vis: &Visible) -> [__m256; 4] {
         // The cell's corner as `f32` (the screen's coordinates are far below
         // 2^31, so through `i32` they convert as from `u32`), plus 1.5.
-        let corner = _mm_cvtepi32_ps(_mm_setr_epi32(vis.px as i32, vis.py as i32, 0, 0));
+        // (`px` and `py` as one 64-bit integer: one load where the two fields are
+        // side by side, and one move to the register.)
+        let corner = _mm_cvtepi32_ps(_mm_cvtsi64_si128((u64::from(vis.px) | u64::from(vis.py) << 32) as i64));
         let q = _mm_add_ps(corner, _mm_set1_ps(1.5));
         let (qx, qy) = (_mm_permute_ps::<0b00_00_00_00>(q), _mm_permute_ps::<0b01_01_01_01>(q));
         let at = _mm_add_ps(_mm_add_ps(_mm_mul_ps(self.a, qx), _mm_mul_ps(self.b, qy)), self.c);

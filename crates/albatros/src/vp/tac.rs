@@ -17,6 +17,9 @@
 //! Both replace libm's `exp` and `log2` (which cost about 27 instructions each per
 //! pixel here and are not what the hardware did); each is a few operations and two
 //! reads. The entries are `f32` rounded from `f64`; `albatros tables` writes them.
+//! The AVX2 copies read each ROM's steps too (entry `k + 1` less entry `k`, the `f32`
+//! difference the interpolation takes, kept beside the entries): one subtraction
+//! fewer a read, the same bits.
 
 #[cfg(target_arch = "x86_64")]
 use std::arch::x86_64::*;
@@ -41,7 +44,7 @@ const LOG2_ENTRIES: usize = (1 << LOG2_ADDRESS_BITS) + 1;
 /// Mantissa bits of an `f32`.
 const MANTISSA_BITS: u32 = 23;
 
-/// Entries of the AVX2 copies' window of a ROM ([`window_entries_avx2`]): one
+/// Entries of the AVX2 copies' window of a ROM ([`window_steps_avx2`]): one
 /// register of `f32`.
 const WINDOW: usize = 8;
 
@@ -61,10 +64,21 @@ const PAD_AFTER: usize = WINDOW - WINDOW_BACK - 1;
 /// entries around it (entry `k` at `PAD_BEFORE + k`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct TacRom {
-    /// `exp(-k / 256)`, then zeros from `k = 4096`.
-    fog: Box<[f32; PAD_BEFORE + FOG_ENTRIES + PAD_AFTER]>,
+    /// `exp(-k / 256)`, then zeros from `k = 4096` (`fog[0]`); and the steps,
+    /// entry `k + 1` less entry `k` (as `f32`, the difference [`Self::fog`]
+    /// takes), stored alike (`fog[1]`, the last entry's and the spare ones zero):
+    /// the AVX2 copy's window reads them where it had read the entries `k + 1`
+    /// and subtracted ([`TacRom::fog_avx2`]). In one allocation, so that the
+    /// steps are at a constant offset from the entries (a separate box had cost
+    /// a pointer's load and a register: terrain +1.4 M instructions).
+    fog: Box<[[f32; PAD_BEFORE + FOG_ENTRIES + PAD_AFTER]; 2]>,
     /// `log2(1 + k / 256)`.
     log2: [f32; PAD_BEFORE + LOG2_ENTRIES + PAD_AFTER],
+    /// The `log2` ROM as pairs, entry `k` and its step (entry `k + 1` less entry
+    /// `k`, as `f32`, the difference [`Self::log2`] takes), for `k = 0..256`: the
+    /// AVX2 copy's 8-byte load of a lane reads both, where it had read entries
+    /// `k` and `k + 1` and subtracted ([`Self::log2_avx2`]).
+    log2_steps: [[f32; 2]; LOG2_ENTRIES - 1],
 }
 
 impl TacRom {
@@ -78,15 +92,23 @@ impl TacRom {
         let full = (FOG_RANGE * FOG_STEPS_PER_UNIT) as usize;
         // Entry `k` at `PAD_BEFORE + k`; the spare entries zero.
         let entry = |at: usize, entries: usize| at.checked_sub(PAD_BEFORE).filter(|&k| k < entries);
-        let fog = Box::new(std::array::from_fn(|at| match entry(at, FOG_ENTRIES) {
+        let fog: [f32; PAD_BEFORE + FOG_ENTRIES + PAD_AFTER] = std::array::from_fn(|at| match entry(at, FOG_ENTRIES) {
             Some(k) if k < full => (-(k as f64) / f64::from(FOG_STEPS_PER_UNIT)).exp() as f32,
             _ => 0.0,
-        }));
+        });
+        let steps = std::array::from_fn(|at| match entry(at, FOG_ENTRIES - 1) {
+            Some(_) => fog[at + 1] - fog[at],
+            None => 0.0,
+        });
         let log2 = std::array::from_fn(|at| match entry(at, LOG2_ENTRIES) {
             Some(k) => (1.0 + k as f64 / f64::from(1u32 << LOG2_ADDRESS_BITS)).log2() as f32,
             None => 0.0,
         });
-        Self { fog, log2 }
+        let log2_steps = std::array::from_fn(|k| {
+            let (a, b) = (log2[PAD_BEFORE + k], log2[PAD_BEFORE + k + 1]);
+            [a, b - a]
+        });
+        Self { fog: Box::new([fog, steps]), log2, log2_steps }
     }
 
     /// The fog factor `f = exp(-x)` for `x = Z / Z0`: 1 at 0, 0 from
@@ -190,19 +212,25 @@ impl TacRom {
         // `s` is in `0 ..= full` (no NaN), so `k` is too: [`Self::fog_lanes`]'s
         // clamp of `k` to `full`, and [`entries_avx2`]'s to the ROM's last entry but
         // one (`full`), leave it as it is (terrain: ~0.7 M instructions a frame).
-        let k = small_int_avx2(_mm256_floor_ps(s));
-        let t = _mm256_sub_ps(s, _mm256_cvtepi32_ps(k));
+        // `t = s - k` from the floor itself: `k` as `f32` is the floor (an
+        // integer in `0..=full`), with no conversion back (terrain: ~0.4 M
+        // instructions a frame).
+        let floor = _mm256_floor_ps(s);
+        let k = small_int_avx2(floor);
+        let t = _mm256_sub_ps(s, floor);
         debug_assert!(self.fog_table().len() == full as usize + 2);
         // SAFETY: every lane of `k` is at most `full`, the fog ROM's last entry but
         // one (just above).
         #[allow(unsafe_code, reason = "a ROM read at entries known to be inside it")]
-        let (a, b) = unsafe { window_entries_avx2(&self.fog[..], k) };
-        _mm256_add_ps(a, _mm256_mul_ps(t, _mm256_sub_ps(b, a)))
+        let (a, step) = unsafe { window_steps_avx2(&self.fog[0][..], &self.fog[1][..], k) };
+        _mm256_add_ps(a, _mm256_mul_ps(t, step))
     }
 
     /// [`Self::log2_lanes`] of eight values in an AVX2 register, bit for bit, the
-    /// two ROM reads per lane as one 8-byte load ([`entries_avx2`]; the address is
-    /// 8 bits, at most 255, and the table holds 257 entries).
+    /// two ROM reads per lane as one 8-byte load of entry `k` and its step from
+    /// [`TacRom::log2_steps`] ([`pairs_avx2`]; the address is 8 bits, at most
+    /// 255, and the table holds 256 pairs): one subtraction fewer than reading
+    /// entries `k` and `k + 1` (default: colour + VB −0.16 M instructions).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     #[inline]
@@ -220,8 +248,8 @@ impl TacRom {
         );
         let t = _mm256_cvtepi32_ps(_mm256_and_si256(bits, _mm256_set1_epi32((1 << low_bits) - 1)));
         let t = _mm256_mul_ps(t, _mm256_set1_ps(1.0 / (1u32 << low_bits) as f32));
-        let (a, b) = entries_avx2(self.log2_table(), k);
-        _mm256_add_ps(exponent, _mm256_add_ps(a, _mm256_mul_ps(t, _mm256_sub_ps(b, a))))
+        let (a, step) = pairs_avx2::<2>(self.log2_steps.as_flattened(), k);
+        _mm256_add_ps(exponent, _mm256_add_ps(a, _mm256_mul_ps(t, step)))
     }
 
     /// [`Self::fog_lanes`] of sixteen values in an AVX-512 register, bit for bit,
@@ -265,7 +293,7 @@ impl TacRom {
     /// The fog ROM's entries.
     #[inline(always)]
     pub fn fog_table(&self) -> &[f32] {
-        &self.fog[PAD_BEFORE..PAD_BEFORE + FOG_ENTRIES]
+        &self.fog[0][PAD_BEFORE..PAD_BEFORE + FOG_ENTRIES]
     }
 
     /// The `log2` ROM's entries.
@@ -305,20 +333,24 @@ pub(crate) fn small_int_avx2(x: __m256) -> __m256i {
     _mm256_cvttps_epi32(x)
 }
 
-/// Entries `k` and `k + 1` of a ROM for eight lanes of `k` (each lane at most
-/// the ROM's last entry but one), `padded` the ROM as [`TacRom`] stores it (with
-/// [`PAD_BEFORE`] and [`PAD_AFTER`] spare entries): when every lane's `k` lies in
-/// the window of [`WINDOW`] entries from lane 0's `k - WINDOW_BACK`, two
-/// permutes of the window and of the window one entry on, read from memory (the
-/// spare entries keep both inside the stored table for any lane 0); else
-/// [`entries_avx2`]'s eight loads. The same entries either way. A half cell's `Z`
-/// varies little: its fog entries lie in one window in 99 % of terrain's half
-/// cells, and in 83 % (one half visible) to 100 % (both) of default's; the
-/// window costs ~13 instructions where the loads, their extracts and shuffles
-/// cost ~21 (colour + VB: default 111.4 → 109.9 M, terrain 170.8 → 166.7 M,
-/// city 71.5 → 69.7 M). The `log2` ROM keeps the loads: a footprint's mantissa
-/// moves faster than `Z` (its square), and its window missed in most half cells
-/// (default +0.4 M).
+/// Entry `k` and step `k` (entry `k + 1` less entry `k`) of a ROM for eight
+/// lanes of `k` (each lane at most the ROM's last entry but one), `padded` the
+/// ROM as [`TacRom`] stores it (with [`PAD_BEFORE`] and [`PAD_AFTER`] spare
+/// entries) and `steps` its steps stored alike ([`TacRom::fog`]'s second table): when
+/// every lane's `k` lies in the window of [`WINDOW`] entries from lane 0's `k -
+/// WINDOW_BACK`, two permutes of the window of entries and of the window of
+/// steps, read from memory (the spare entries keep both inside the stored
+/// tables for any lane 0); else [`entries_avx2`]'s eight loads and the
+/// subtraction. The same values either way: a step is the `f32` difference of
+/// the two entries, which the portable copies take. A half cell's `Z` varies
+/// little: its fog entries lie in one window in 99 % of terrain's half cells,
+/// and in 83 % (one half visible) to 100 % (both) of default's; the window costs
+/// ~13 instructions where the loads, their extracts and shuffles cost ~21
+/// (colour + VB: default 111.4 → 109.9 M, terrain 170.8 → 166.7 M, city 71.5 →
+/// 69.7 M). The steps stored, rather than the window of entries `k + 1` and a
+/// subtraction: one instruction fewer a half cell. The `log2` ROM keeps the
+/// loads: a footprint's mantissa moves faster than `Z` (its square), and its
+/// window missed in most half cells (default +0.4 M).
 ///
 /// # Safety
 ///
@@ -329,7 +361,8 @@ pub(crate) fn small_int_avx2(x: __m256) -> __m256i {
 #[target_feature(enable = "avx2")]
 #[inline]
 #[allow(unsafe_code, reason = "the window's start is lane 0's entry, which the caller keeps inside the ROM")]
-unsafe fn window_entries_avx2(padded: &[f32], k: __m256i) -> (__m256, __m256) {
+unsafe fn window_steps_avx2(padded: &[f32], steps: &[f32], k: __m256i) -> (__m256, __m256) {
+    assert!(steps.len() == padded.len());
     let table = &padded[PAD_BEFORE..padded.len() - PAD_AFTER];
     // (No clamp: every lane is at most the last entry but one, this function's
     // condition, so `entries_avx2`'s reads the same entries.)
@@ -354,19 +387,20 @@ unsafe fn window_entries_avx2(padded: &[f32], k: __m256i) -> (__m256, __m256) {
     // Offsets in `0..WINDOW` have no bit above the window's; a lane below the
     // window has a negative offset, all its high bits set.
     if _mm256_testz_si256(at, _mm256_set1_epi32(!(WINDOW as i32 - 1))) == 0 {
-        return entries_avx2(table, k);
+        let (a, b) = entries_avx2(table, k);
+        return (a, _mm256_sub_ps(b, a));
     }
     debug_assert!(k0 + WINDOW < padded.len());
     // SAFETY: `k0` is at most `table.len() - 2` (this function's condition), so the
-    // `WINDOW` entries read from `padded[k0]` and from `padded[k0 + 1]` end at
-    // `k0 + WINDOW`, at most `table.len() - 2 + WINDOW` = `PAD_BEFORE +
-    // table.len() + PAD_AFTER - 1`, the last of `padded`.
+    // `WINDOW` entries read from `padded[k0]` and from `steps[k0]` end at `k0 +
+    // WINDOW - 1`, at most `table.len() - 3 + WINDOW` = `PAD_BEFORE +
+    // table.len() + PAD_AFTER - 2`, inside `padded` and `steps` (of its length,
+    // the assertion above).
     #[allow(unsafe_code, reason = "loads of a window of a padded ROM, its start inside it")]
     // (`vlddqu`: an unaligned load of 32 bytes in one instruction, where the
     // compiler splits `_mm256_loadu_ps` into two halves and an insert.)
     let (low, high) = unsafe {
-        let window = padded.as_ptr().add(k0);
-        (_mm256_lddqu_si256(window.cast()), _mm256_lddqu_si256(window.add(1).cast()))
+        (_mm256_lddqu_si256(padded.as_ptr().add(k0).cast()), _mm256_lddqu_si256(steps.as_ptr().add(k0).cast()))
     };
     (_mm256_permutevar8x32_ps(_mm256_castsi256_ps(low), at), _mm256_permutevar8x32_ps(_mm256_castsi256_ps(high), at))
 }
@@ -382,7 +416,21 @@ unsafe fn window_entries_avx2(padded: &[f32], k: __m256i) -> (__m256, __m256) {
 #[target_feature(enable = "avx2")]
 #[inline]
 fn entries_avx2(table: &[f32], k: __m256i) -> (__m256, __m256) {
-    let k = _mm256_min_epu32(k, _mm256_set1_epi32(table.len() as i32 - 2));
+    pairs_avx2::<1>(table, k)
+}
+
+/// [`entries_avx2`] of a table of pairs side by side (`STRIDE` 2, pair `k` at
+/// `table[2 k]`): the two `f32` of pair `k` for eight lanes of `k`, each lane
+/// clamped to the last pair (`STRIDE` 1: the entries `k` and `k + 1` of
+/// [`entries_avx2`]). The scale of the address is the load's own (no
+/// instruction).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn pairs_avx2<const STRIDE: usize>(table: &[f32], k: __m256i) -> (__m256, __m256) {
+    // The last `k` whose two `f32` at `STRIDE k` are inside the table.
+    let last = (table.len() - 2) / STRIDE;
+    let k = _mm256_min_epu32(k, _mm256_set1_epi32(last as i32));
     let mut at = [0u32; 8];
     // SAFETY: `at` is 8 `u32`, the 32 bytes the store writes.
     #[allow(unsafe_code, reason = "an unaligned store of a register into an array of its size")]
@@ -392,11 +440,15 @@ fn entries_avx2(table: &[f32], k: __m256i) -> (__m256, __m256) {
     let table = table.as_ptr();
     // Entries `a`, `a + 1`, `b`, `b + 1`.
     let pairs = |a: u32, b: u32| {
-        // SAFETY: `a` and `b` are lanes of `k`, each at most `table.len() - 2`
-        // (the `min` above): the 8 bytes at each are two entries of the table.
+        // SAFETY: `a` and `b` are lanes of `k`, each at most `last` (the `min`
+        // above), so `STRIDE a` and `STRIDE b` are at most `table.len() - 2`: the
+        // 8 bytes at each are two `f32` of the table.
         #[allow(unsafe_code, reason = "8-byte loads from a ROM, the addresses clamped inside it")]
         unsafe {
-            _mm_castpd_ps(_mm_loadh_pd(_mm_load_sd(table.add(a as usize).cast()), table.add(b as usize).cast()))
+            _mm_castpd_ps(_mm_loadh_pd(
+                _mm_load_sd(table.add(STRIDE * a as usize).cast()),
+                table.add(STRIDE * b as usize).cast(),
+            ))
         }
     };
     // Lanes 0, 1 | 4, 5 and 2, 3 | 6, 7 (entry and next, interleaved), so that

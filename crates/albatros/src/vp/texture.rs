@@ -555,9 +555,13 @@ impl MapAvx2<'_> {
         // `log.min(top)` (never NaN: the ROM's `log2` is finite) where below
         // `beyond`, else `top`; all that where above one texel, else 0 (NaN too:
         // ordered compares are false for it).
-        let below = _mm256_cmp_ps::<_CMP_LT_OQ>(texels, self.beyond);
+        //
+        // Where `texels` is above one texel it is not NaN, so there "below
+        // `beyond`" is "not [`Self::beyond_avx2`]": the callers' test of that
+        // compare is reused (one compare fewer a half cell), the select swapped.
+        let beyond = self.beyond_avx2(texels);
         let over_one = _mm256_cmp_ps::<_CMP_GT_OQ>(texels, _mm256_set1_ps(1.0));
-        let lod = if _mm256_movemask_ps(_mm256_and_ps(below, over_one)) == 0 {
+        let lod = if _mm256_movemask_ps(_mm256_andnot_ps(beyond, over_one)) == 0 {
             // No lane between the clamps (a magnified map: 65 % of default's
             // cells with one half visible): each lane's level is `top` or 0 as
             // below, and the `log2` ROM is not read (colour + VB: default 109.9
@@ -565,7 +569,7 @@ impl MapAvx2<'_> {
             _mm256_and_ps(top, over_one)
         } else {
             let log = self.rom.log2_avx2(texels);
-            _mm256_and_ps(_mm256_blendv_ps(top, _mm256_min_ps(log, top), below), over_one)
+            _mm256_and_ps(_mm256_blendv_ps(_mm256_min_ps(log, top), top, beyond), over_one)
         };
         let floor = _mm256_floor_ps(lod);
         let kr = _mm256_sub_ps(lod, floor);
@@ -794,14 +798,18 @@ fn fract01_avx512(x: __m512) -> __m512 {
     _mm512_min_ps(_mm512_max_ps(d, _mm512_setzero_ps()), _mm512_set1_ps(1.0))
 }
 
-/// [`fract01`] of eight values in an AVX2 register (`maxps` returns its second
-/// operand, 0, for a NaN, as `f32::max` does).
+/// [`fract01`] of eight values in an AVX2 register, bit for bit (`maxps` returns
+/// its second operand, 0, for a NaN, as `f32::max` does). With no `min` with 1:
+/// for a finite `x`, `x - floor(x)` is exactly in `[0, 1)` and 1 is a float, so
+/// its rounding is at most 1 (1 only for a tiny negative `x`) and `min(.., 1)`
+/// is the identity; an infinite `x` gives `inf - inf`, NaN, which the `max` makes
+/// 0 (one instruction fewer a coordinate, four in a whole textured cell).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
 fn fract01_avx2(x: __m256) -> __m256 {
     let d = _mm256_sub_ps(x, _mm256_floor_ps(x));
-    _mm256_min_ps(_mm256_max_ps(d, _mm256_setzero_ps()), _mm256_set1_ps(1.0))
+    _mm256_max_ps(d, _mm256_setzero_ps())
 }
 
 /// Pixels the colour computers and the texture unit work on side by side in the
@@ -1573,6 +1581,66 @@ mod tests {
 
     /// The pair layout holds, at pair `(r, c)` of each level, texels `(c, r)` and
     /// `(c, r + 1)`, wrapped.
+    /// [`fract01_avx2`] (with no `min`) against [`fract01`], bit for bit: random
+    /// bit patterns, small values of either sign around integers, and the odd
+    /// ones (zeros, infinities, NaN, the largest and smallest).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn fract01_avx2_is_fract01_bit_for_bit() {
+        #[target_feature(enable = "avx2")]
+        #[allow(unsafe_code, reason = "a load and a store of arrays of a register's size")]
+        fn run(x: &[f32; 8]) -> [f32; 8] {
+            let mut out = [0.0f32; 8];
+            // SAFETY: both arrays are 8 `f32`, the 32 bytes the load and the store touch.
+            unsafe { _mm256_storeu_ps(out.as_mut_ptr(), fract01_avx2(_mm256_loadu_ps(x.as_ptr()))) };
+            out
+        }
+        if !std::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let odd = [
+            0.0,
+            -0.0,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            f32::MAX,
+            f32::MIN,
+            f32::MIN_POSITIVE,
+            -f32::MIN_POSITIVE,
+            f32::from_bits(1),
+            -f32::from_bits(1),
+            -1e-10,
+            -1.0,
+            1.0,
+            -0.5,
+            16_777_217.0,
+            -8_388_607.5,
+        ];
+        let mut h = 0x9E37_79B9u32;
+        let mut next = || {
+            h ^= h << 13;
+            h ^= h >> 17;
+            h ^= h << 5;
+            h
+        };
+        for round in 0..400_000u32 {
+            let x: [f32; 8] = std::array::from_fn(|l| match (round as usize + l) % 4 {
+                0 => odd[(round as usize + l) % odd.len()],
+                1 => f32::from_bits(next()),
+                // Near an integer of either sign, by a tiny amount.
+                2 => (next() % 64) as f32 - 32.0 + f32::from_bits(next() & 0x33FF_FFFF) * [1.0, -1.0][l % 2],
+                _ => (next() >> 8) as f32 / (1u32 << 20) as f32 - 8.0,
+            });
+            // SAFETY: the processor has AVX2 (detected above).
+            #[allow(unsafe_code, reason = "a test of the AVX2 copy, after detection")]
+            let avx2 = unsafe { run(&x) };
+            for l in 0..8 {
+                assert_eq!(avx2[l].to_bits(), fract01(x[l]).to_bits(), "fract01 of {} ({:#x})", x[l], x[l].to_bits());
+            }
+        }
+    }
+
     #[test]
     fn pair_layout_holds_the_texels() {
         for map in [ramp(1), ramp(2), ramp(16), builtin("grass").unwrap()] {
