@@ -1004,6 +1004,20 @@ mod tests {
             }
         }
         assert!(taken > 500_000 || !std::is_x86_feature_detected!("avx2"), "{taken}");
+        // A coordinate just beyond the bounds, of any point: not taken (the
+        // scalar path makes those codes).
+        for far in [m, -m - 1] {
+            for k in 0..6 {
+                let mut c = [0, 0, 5, 0, 0, 7];
+                c[k] = far;
+                let pts = [
+                    (ScreenFx(c[0]), ScreenFx(c[1])),
+                    (ScreenFx(c[2]), ScreenFx(c[3])),
+                    (ScreenFx(c[4]), ScreenFx(c[5])),
+                ];
+                assert_eq!(triangle_avx2(pts, k % 2 == 0, 4 << MAX_ROOT_LEVEL), None, "{pts:?}");
+            }
+        }
     }
 
     #[test]
