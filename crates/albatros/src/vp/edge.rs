@@ -511,7 +511,8 @@ impl EdgeCode {
         // (each widened and masked in 64-bit lanes: `many`'s GP at 480x270 864.3
         // -> 861.3 M instructions): they are the word's low bits, below the
         // origin's.
-        const _: () = assert!((WORD_TG | WORD_LR | WORD_EXACT32 | WORD_VERTEX32) < 1 << 16);
+        const _: () =
+            assert!(WORD_TG < 1 << 16 && WORD_LR < 1 << 16 && WORD_EXACT32 < 1 << 16 && WORD_VERTEX32 < 1 << 16);
         macro_rules! bit {
             ($b:expr) => {
                 _mm_set1_epi32($b as i32)
