@@ -417,6 +417,12 @@ impl EdgeCode {
         use std::arch::x86_64::*;
         const _: () = assert!(1 << (FLOAT_COORD_BITS + 1) <= EXACT32_COEFFICIENT_LIMIT);
         const _: () = assert!(MAX_ROOT_SIDE.trailing_zeros() <= ROOT_V_BITS);
+        // Reserved first, while few values are live: the reservation's call (on
+        // its rare path) made the compiler keep the lanes below on the stack, and
+        // load them again, around it (`many`'s GP at 480x270: 880.3 -> 867.3 M
+        // instructions, with the write below through the vector's pointer
+        // rather than a slice of its spare capacity, whose length was tested).
+        out.reserve(3);
         let [p0, p1, p2] = points;
         // Lane k: the edge from point k to point k + 1; lane 3 repeats lane 0
         // (never stored; a non-zero divisor where lane 0 has one).
@@ -424,14 +430,13 @@ impl EdgeCode {
         let ay = _mm_setr_epi32(p0.1 .0, p1.1 .0, p2.1 .0, p0.1 .0);
         let bx = _mm_shuffle_epi32::<0b01_00_10_01>(ax);
         let by = _mm_shuffle_epi32::<0b01_00_10_01>(ay);
-        // `x ^ (x >> 31)` is `|x|` or `|x| - 1`: all magnitudes tested by one OR.
+        // `x ^ (x >> 31)` is `|x|` or `|x| - 1`: lane k's two magnitudes (point
+        // k's) tested by one OR, the lanes' results tested with the divisors'
+        // below, one branch (the lanes ORed together and tested on their own were
+        // about 5 instructions more a triangle; the steps between wrap, harmless).
         let mag =
             _mm_or_si128(_mm_xor_si128(ax, _mm_srai_epi32::<31>(ax)), _mm_xor_si128(ay, _mm_srai_epi32::<31>(ay)));
-        let mag = _mm_or_si128(mag, _mm_shuffle_epi32::<0b00_11_10_11>(mag));
-        let mag = _mm_or_si128(mag, _mm_shuffle_epi32::<0b00_00_00_01>(mag));
-        if (_mm_cvtsi128_si32(mag) as u32) >> FLOAT_COORD_BITS != 0 {
-            return false;
-        }
+        let too_far = _mm_cmpgt_epi32(mag, _mm_set1_epi32((1 << FLOAT_COORD_BITS) - 1));
         let zero = _mm_setzero_si128();
         let (dx, dy) = (_mm_sub_epi32(bx, ax), _mm_sub_epi32(by, ay));
         // All-ones lanes where the edge is vertical (|dy| > |dx|).
@@ -470,8 +475,9 @@ impl EdgeCode {
         let aw = _mm_add_epi32(aw, _mm_and_si128(dw, backwards));
         let du = negate_where!(du, backwards);
         let dw = negate_where!(dw, backwards);
-        if _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(dw, zero))) & 0b111 != 0 {
-            // Two equal points: the scalar path panics as it always did.
+        if _mm_movemask_ps(_mm_castsi128_ps(_mm_or_si128(too_far, _mm_cmpeq_epi32(dw, zero)))) & 0b111 != 0 {
+            // A point beyond the bounds (the scalar path takes it), or two equal
+            // points (the scalar path panics as it always did).
             return false;
         }
         // The floor divisions (see above): numerators, quotients, one correction.
@@ -501,17 +507,22 @@ impl EdgeCode {
             _mm_set1_epi32(VERTEX_COEFFICIENT_LIMIT as i32),
             _mm_max_epi32(_mm_abs_epi32(dx), _mm_abs_epi32(dy)),
         );
-        let word = _mm256_or_si256(
-            _mm256_or_si256(origin, _mm256_set1_epi64x(WORD_EXACT32)),
-            _mm256_or_si256(
-                _mm256_or_si256(
-                    _mm256_and_si256(wide!(vertical), _mm256_set1_epi64x(WORD_TG)),
-                    _mm256_and_si256(wide!(lr), _mm256_set1_epi64x(WORD_LR)),
-                ),
-                _mm256_and_si256(wide!(vertex32), _mm256_set1_epi64x(WORD_VERTEX32)),
-            ),
+        // The flags are masked and joined in the 32-bit lanes and widened once
+        // (each widened and masked in 64-bit lanes: `many`'s GP at 480x270 864.3
+        // -> 861.3 M instructions): they are the word's low bits, below the
+        // origin's.
+        const _: () =
+            assert!(WORD_TG < 1 << 16 && WORD_LR < 1 << 16 && WORD_EXACT32 < 1 << 16 && WORD_VERTEX32 < 1 << 16);
+        macro_rules! bit {
+            ($b:expr) => {
+                _mm_set1_epi32($b as i32)
+            };
+        }
+        let flags = _mm_or_si128(
+            _mm_or_si128(_mm_and_si128(vertical, bit!(WORD_TG)), _mm_and_si128(lr, bit!(WORD_LR))),
+            _mm_or_si128(_mm_and_si128(vertex32, bit!(WORD_VERTEX32)), bit!(WORD_EXACT32)),
         );
-        out.reserve(3);
+        let word = _mm256_or_si256(origin, _mm256_cvtepu32_epi64(flags));
         let len = out.len();
         // Each code is one 32-byte register (its layout asserted above): the lanes' fields
         // transposed in registers and stored whole (the stores of the fields one
@@ -534,7 +545,8 @@ impl EdgeCode {
             _mm256_permute2x128_si256::<0x20>(t1, t3),
             _mm256_permute2x128_si256::<0x31>(t0, t2),
         ];
-        let dst = out.spare_capacity_mut()[..3].as_mut_ptr().cast::<__m256i>();
+        // SAFETY: the three slots after `len` were reserved above.
+        let dst = unsafe { out.as_mut_ptr().add(len) }.cast::<__m256i>();
         for (k, code) in codes.into_iter().enumerate() {
             // SAFETY: the three codes' 96 bytes after `len` were reserved; code `k`
             // is the 32 bytes at `k` (an unaligned store), every field written
@@ -993,6 +1005,20 @@ mod tests {
             }
         }
         assert!(taken > 500_000 || !std::is_x86_feature_detected!("avx2"), "{taken}");
+        // A coordinate just beyond the bounds, of any point: not taken (the
+        // scalar path makes those codes).
+        for far in [m, -m - 1] {
+            for k in 0..6 {
+                let mut c = [0, 0, 5, 0, 0, 7];
+                c[k] = far;
+                let pts = [
+                    (ScreenFx(c[0]), ScreenFx(c[1])),
+                    (ScreenFx(c[2]), ScreenFx(c[3])),
+                    (ScreenFx(c[4]), ScreenFx(c[5])),
+                ];
+                assert_eq!(triangle_avx2(pts, k % 2 == 0, 4 << MAX_ROOT_LEVEL), None, "{pts:?}");
+            }
+        }
     }
 
     #[test]
