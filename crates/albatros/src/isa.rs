@@ -1,15 +1,16 @@
 //! Which copy of the VP's hot units runs on an x86-64 processor that has AVX-512.
 //!
-//! The subpixel processors, the colour computers and the VB's F1 each have an AVX2
-//! copy, tuned from session 7 to 25 on a Zen 3 (no AVX-512), and an AVX-512 copy of
-//! session 6, written on a Zen 4 and not tuned since. On a Zen 4 again (session 26)
-//! the AVX2 copies are the faster: one thread at 1920 x 1080, terrain 1.25-1.29x and
-//! default 1.25-1.44x, the raster alone 1.5x (BENCHMARKS.md, session 26). So the
-//! AVX2 copies run wherever the processor has AVX2, and the AVX-512 copies of those
-//! three units only when the environment asks for them with `ALBATROS_AVX512=1`
+//! The subpixel processors, the colour computers, the VB's F1 and its readout each
+//! have an AVX2 copy, tuned from session 7 to 25 on a Zen 3 (no AVX-512), and an
+//! AVX-512 copy of session 6, written on a Zen 4 and not tuned since. On a Zen 4
+//! again (session 26) the AVX2 copies are the faster: one thread at 1920 x 1080,
+//! terrain 1.25-1.29x and default 1.25-1.44x, the raster alone 1.5x; the readout
+//! alone default ~1.25x, terrain ~1.33x, city 0.95x (BENCHMARKS.md, session 26). So
+//! the AVX2 copies run wherever the processor has AVX2, and the AVX-512 copies of
+//! those units only when the environment asks for them with `ALBATROS_AVX512=1`
 //! ([`avx512_asked`], read once a process), to measure them against the AVX2 ones.
-//! The other AVX-512 code (the readout's passes, the exact rule's vertex pixels on
-//! the SPPs' plain route) is chosen by its own detection, as before.
+//! The exact rule's vertex pixels on the SPPs' plain route (which the AVX2 route
+//! does not take) keep their own AVX-512 detection.
 //!
 //! **Either way the image is the same, byte for byte**: every copy is tested bit for
 //! bit against its unit's definition.

@@ -3540,10 +3540,12 @@ struct Log8Avx512(());
 
 #[cfg(target_arch = "x86_64")]
 impl Log8Avx512 {
-    /// The token if the processor has AVX-512 F, BW and VBMI.
+    /// The token if the processor has AVX-512 F, BW and VBMI and the AVX-512 copies
+    /// are asked for ([`crate::isa`]: the AVX2 passes are the faster on a Zen 4).
     #[inline]
     fn detect() -> Option<Self> {
-        (std::is_x86_feature_detected!("avx512f")
+        (crate::isa::avx512_asked()
+            && std::is_x86_feature_detected!("avx512f")
             && std::is_x86_feature_detected!("avx512bw")
             && std::is_x86_feature_detected!("avx512vbmi"))
         .then_some(Self(()))
