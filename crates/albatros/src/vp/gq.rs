@@ -1100,7 +1100,8 @@ impl CellProcessors {
     /// inside marked and filled, the others split as [`Self::last_split`] splits);
     /// for the descent from a bounding cell of level L - 1 see
     /// [`Self::last_cells_of`]. A split's decisions are each child's alone: an edge
-    /// codes a child IN when its line lies at or before the child's near border on the polygon's side, OUT when at or beyond its far one
+    /// codes a child IN when its line lies at or before the child's near border on
+    /// the polygon's side, OUT when at or beyond its far one
     /// (the tests' `edge_code`), by the V of the child's own stretch, which is the edge's V at
     /// the child's borders (exact, [`super::edge`]); so a cell of level L - 1 is OUT
     /// for an edge (dropped by the start) when its four children are, IN when they
@@ -1844,7 +1845,7 @@ impl LastCells {
     /// with the rest of that session's changes) but not the time on this machine's
     /// AMD EPYC: `many` 480 x 270 raster 489 / 487 ms → 506 / 511 ms (gathers), 492 /
     /// 490 / 484 → 497 / 505 / 489 ms with the sets by scalar loads (which counted
-    /// 1730.9 M); left out (branch `gq26`, commit `88d6c75`).
+    /// 1730.9 M); left out (commit `88d6c75` in main's history).
     #[inline(always)]
     fn new(edges: &[EdgeCode], wx: u32, wy: u32, columns: u32, rows: u32, bbox: [u32; 4]) -> Self {
         debug_assert!(edges.len() <= AT_ONCE_EDGES && columns < WINDOW_SPAN && rows < WINDOW_SPAN);
@@ -2622,9 +2623,6 @@ mod tests {
         }
     }
 
-    /// [`children_in_box`] is the children whose pixel squares meet the box: every
-    /// box of a 32-pixel square that meets the cell (its precondition), around cells
-    /// of sides 2-16.
     /// [`window_box`] (its tables) is the set of the window's last-level cells that
     /// meet the box, by the definition, for every box in a window, at two corners.
     #[test]
@@ -2648,6 +2646,9 @@ mod tests {
         }
     }
 
+    /// [`children_in_box`] is the children whose pixel squares meet the box: every
+    /// box of a 32-pixel square that meets the cell (its precondition), around cells
+    /// of sides 2-16.
     #[test]
     fn children_in_box_meet_the_box() {
         for shift in 1..=3u32 {
