@@ -408,6 +408,7 @@ impl BenchRow<'_> {
                 "scene": self.name, "width": self.screen.width, "height": self.screen.height,
                 "threads": self.threads, "pipeline": self.stages.is_none(), "frames": self.frames,
                 "median_ms": median, "min_ms": min, "max_ms": max, "fps": 1e3 / median,
+                "copies": albatros::isa::copies(),
             });
             if let Some([gp, raster, color, readout]) = self.stages {
                 v["stages"] = serde_json::json!({
@@ -456,6 +457,9 @@ fn bench(args: BenchArgs) -> Result<()> {
         args.scenes.clone()
     };
     if !args.json {
+        // Which instruction-set copies run (`ALBATROS_AVX512=1` asks for the AVX-512
+        // ones): figures from two machines or settings compare only alike.
+        println!("VP copies: {} (ALBATROS_AVX512=1: the AVX-512 ones)", albatros::isa::copies());
         println!(
             "{:<10} {:>10} {:>7} {:>9} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9}",
             "scene", "size", "frames", "median", "min", "max", "fps", "gp", "raster", "color+vb",

@@ -66,6 +66,32 @@ fn render_writes_a_png_of_the_default_scene() {
     cleanup(&out);
 }
 
+/// `bench --json` reports which instruction-set copies ran: the AVX2 ones where the
+/// processor has AVX2, the AVX-512 ones when `ALBATROS_AVX512=1` asks for them on a
+/// processor with AVX-512F.
+#[test]
+fn bench_reports_the_copies_it_ran() {
+    let copies = |asked: bool| {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_albatros"));
+        command.args(["bench", "rhombus", "--size", "64x64", "--frames", "1", "--warmup", "0", "--json"]);
+        command.env_remove("ALBATROS_AVX512");
+        if asked {
+            command.env("ALBATROS_AVX512", "1");
+        }
+        let o = command.output().expect("the albatros binary runs");
+        assert!(o.status.success(), "{}", stderr(&o));
+        let line: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON line");
+        line["copies"].as_str().expect("a copies field").to_string()
+    };
+    #[cfg(target_arch = "x86_64")]
+    let (avx2, avx512) = (std::is_x86_feature_detected!("avx2"), std::is_x86_feature_detected!("avx512f"));
+    #[cfg(not(target_arch = "x86_64"))]
+    let (avx2, avx512) = (false, false);
+    let plain = if avx2 { "avx2" } else { "portable" };
+    assert_eq!(copies(false), plain);
+    assert_eq!(copies(true), if avx512 { "avx512" } else { plain });
+}
+
 #[test]
 fn dump_and_info_work_on_the_default_scene() {
     let out = tmp("dump.json");

@@ -25,3 +25,20 @@ pub(crate) fn avx512_asked() -> bool {
     static ASKED: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     *ASKED.get_or_init(|| std::env::var_os(AVX512_VARIABLE).is_some_and(|v| v == "1"))
 }
+
+/// Which copies of those units run in this process, for a report (`albatros bench`):
+/// `"avx512"` when asked for ([`avx512_asked`]) on a processor with AVX-512F (each
+/// unit then runs its AVX-512 copy where the processor has the further features it
+/// needs), else `"avx2"` where the processor has AVX2, else `"portable"`.
+pub fn copies() -> &'static str {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if avx512_asked() && std::is_x86_feature_detected!("avx512f") {
+            return "avx512";
+        }
+        if std::is_x86_feature_detected!("avx2") {
+            return "avx2";
+        }
+    }
+    "portable"
+}
