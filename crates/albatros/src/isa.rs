@@ -8,34 +8,41 @@
 //! alone default ~1.25x, terrain ~1.33x, city 0.95x (BENCHMARKS.md, session 26). So
 //! the AVX2 copies run wherever the processor has AVX2, and the AVX-512 copies of
 //! those units only when the environment asks for them with `ALBATROS_AVX512=1`
-//! ([`avx512_asked`], read once a process), to measure them against the AVX2 ones.
+//! ([`avx512_copies`], read once a process), to measure them against the AVX2 ones.
 //! The exact rule's vertex pixels on the SPPs' plain route (which the AVX2 route
 //! does not take) keep their own AVX-512 detection.
 //!
 //! **Either way the image is the same, byte for byte**: every copy is tested bit for
 //! bit against its unit's definition.
 
-/// The environment variable that asks for the AVX-512 copies ([`avx512_asked`]).
+/// The environment variable that asks for the AVX-512 copies ([`avx512_copies`]).
 pub const AVX512_VARIABLE: &str = "ALBATROS_AVX512";
 
-/// Whether the environment asks for the AVX-512 copies of the SPPs, the colour
-/// computers and F1 (`ALBATROS_AVX512=1`; the processor must still have AVX-512,
-/// which each unit detects). Read once a process, so that a frame never mixes copies.
-pub(crate) fn avx512_asked() -> bool {
-    static ASKED: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *ASKED.get_or_init(|| std::env::var_os(AVX512_VARIABLE).is_some_and(|v| v == "1"))
+/// Whether the AVX-512 copies of the SPPs, the colour computers, F1 and the readout
+/// run: the environment asks for them (`ALBATROS_AVX512=1`) and the processor has
+/// AVX-512F (a unit whose copy needs further features detects those too). Found
+/// once a process, so that a frame never mixes copies. Every unit chooses by this
+/// one test, and so does F1's place (inside the AVX2 colour computers, or apart).
+pub(crate) fn avx512_copies() -> bool {
+    static CHOSEN: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *CHOSEN.get_or_init(|| {
+        #[cfg(target_arch = "x86_64")]
+        let has = std::is_x86_feature_detected!("avx512f");
+        #[cfg(not(target_arch = "x86_64"))]
+        let has = false;
+        has && std::env::var_os(AVX512_VARIABLE).is_some_and(|v| v == "1")
+    })
 }
 
 /// Which copies of those units run in this process, for a report (`albatros bench`):
-/// `"avx512"` when asked for ([`avx512_asked`]) on a processor with AVX-512F (each
-/// unit then runs its AVX-512 copy where the processor has the further features it
-/// needs), else `"avx2"` where the processor has AVX2, else `"portable"`.
+/// `"avx512"` ([`avx512_copies`]), else `"avx2"` where the processor has AVX2, else
+/// `"portable"`.
 pub fn copies() -> &'static str {
+    if avx512_copies() {
+        return "avx512";
+    }
     #[cfg(target_arch = "x86_64")]
     {
-        if avx512_asked() && std::is_x86_feature_detected!("avx512f") {
-            return "avx512";
-        }
         if std::is_x86_feature_detected!("avx2") {
             return "avx2";
         }

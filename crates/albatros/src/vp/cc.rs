@@ -333,10 +333,10 @@ impl<'a> ColorComputers<'a> {
     /// over the counting: one copy of each, the groups inlined into it.)
     fn shade_cell(&mut self, poly: &'a FramePolygon, vis: &Visible, out: &mut CellColors) {
         #[cfg(target_arch = "x86_64")]
-        if std::is_x86_feature_detected!("avx512f") && crate::isa::avx512_asked() {
-            // SAFETY: `shade_avx512` only needs AVX-512F, which the processor was
-            // just found to have. (Asked for only: the AVX2 copy below is the
-            // faster, [`crate::isa`].)
+        if crate::isa::avx512_copies() {
+            // SAFETY: `shade_avx512` only needs AVX-512F, which `avx512_copies`
+            // found the processor to have. (Asked for only: the AVX2 copy below is
+            // the faster, [`crate::isa`].)
             #[allow(unsafe_code, reason = "the one call of a function compiled for AVX-512, after detection")]
             unsafe {
                 return self.shade_avx512(poly, vis, out);
@@ -1228,8 +1228,7 @@ mod tests {
             #[cfg(target_arch = "x86_64")]
             assert_eq!(
                 fused_f1.is_some(),
-                std::is_x86_feature_detected!("avx2")
-                    && !(std::is_x86_feature_detected!("avx512f") && crate::isa::avx512_asked()),
+                std::is_x86_feature_detected!("avx2") && !crate::isa::avx512_copies(),
                 "F1 runs inside the AVX2 colour computers exactly when they run"
             );
             cc.shade_accumulate::<false>(

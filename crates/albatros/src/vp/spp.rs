@@ -834,7 +834,7 @@ impl SubpixelProcessors {
             cleared_share: None,
             clean: false,
             thin: Box::new(std::array::from_fn(|t| Words16(thinning(t as u8)))),
-            avx2: has_avx2() && !(has_avx512() && crate::isa::avx512_asked()),
+            avx2: has_avx2() && !(crate::isa::avx512_copies() && has_avx512()),
             routes: [Route::Plain; 2],
         };
         if s.avx2 && mode != SppMode::Exact {

@@ -1579,8 +1579,6 @@ mod tests {
         assert!(same > 100_000 && rounded_up >= 4, "{same} {rounded_up}");
     }
 
-    /// The pair layout holds, at pair `(r, c)` of each level, texels `(c, r)` and
-    /// `(c, r + 1)`, wrapped.
     /// [`fract01_avx2`] (with no `min`) against [`fract01`], bit for bit: random
     /// bit patterns, small values of either sign around integers, and the odd
     /// ones (zeros, infinities, NaN, the largest and smallest).
@@ -1641,6 +1639,8 @@ mod tests {
         }
     }
 
+    /// The pair layout holds, at pair `(r, c)` of each level, texels `(c, r)` and
+    /// `(c, r + 1)`, wrapped.
     #[test]
     fn pair_layout_holds_the_texels() {
         for map in [ramp(1), ramp(2), ramp(16), builtin("grass").unwrap()] {

@@ -1836,7 +1836,7 @@ impl VideoBuffer {
         #[cfg(target_arch = "x86_64")]
         if matches!(self.memory, Memory::Log8 { .. })
             && std::is_x86_feature_detected!("avx2")
-            && !(std::is_x86_feature_detected!("avx512f") && crate::isa::avx512_asked())
+            && !crate::isa::avx512_copies()
         {
             return Some(FusedF1 { regs: F1Log8::get() });
         }
@@ -3540,12 +3540,12 @@ struct Log8Avx512(());
 
 #[cfg(target_arch = "x86_64")]
 impl Log8Avx512 {
-    /// The token if the processor has AVX-512 F, BW and VBMI and the AVX-512 copies
-    /// are asked for ([`crate::isa`]: the AVX2 passes are the faster on a Zen 4).
+    /// The token if the AVX-512 copies run ([`crate::isa::avx512_copies`]: asked for,
+    /// on a processor with AVX-512F; the AVX2 passes are the faster on a Zen 4) and
+    /// the processor has AVX-512 BW and VBMI too.
     #[inline]
     fn detect() -> Option<Self> {
-        (crate::isa::avx512_asked()
-            && std::is_x86_feature_detected!("avx512f")
+        (crate::isa::avx512_copies()
             && std::is_x86_feature_detected!("avx512bw")
             && std::is_x86_feature_detected!("avx512vbmi"))
         .then_some(Self(()))
