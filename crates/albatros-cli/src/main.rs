@@ -10,6 +10,24 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand, ValueEnum};
 
+/// `print!` to standard output that returns the write's error rather than panicking
+/// as `print!` does: the output piped into a reader that stops early (`albatros
+/// info many | head -3`) closes the pipe, and [`main`] then ends quietly.
+macro_rules! out {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        write!(std::io::stdout().lock(), $($arg)*)
+    }};
+}
+
+/// `println!` that returns the write's error, as [`out!`].
+macro_rules! outln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        writeln!(std::io::stdout().lock(), $($arg)*)
+    }};
+}
+
 mod cells;
 mod stats;
 
@@ -264,14 +282,26 @@ fn gp_config(args: &SceneArgs) -> GpConfig {
 
 fn main() -> Result<()> {
     let cli = Cli::parse();
-    match cli.command {
+    let done = match cli.command {
         Command::Render(args) => render(args),
         Command::Dump(args) => dump(args),
         Command::Info(args) => info(args),
         Command::Bench(args) => bench(args),
         Command::Stats(args) => stats::run(args),
         Command::Tables { out } => tables(&out),
+    };
+    match done {
+        // The reader of the output went away (`| head`): what it wanted it has, as
+        // with any Unix filter; no error, no message.
+        Err(e) if closed_output(&e) => Ok(()),
+        done => done,
     }
+}
+
+/// Whether `e` is a write to a closed pipe (`EPIPE`: Rust ignores `SIGPIPE`, so the
+/// write fails rather than the process being killed).
+fn closed_output(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| c.downcast_ref::<std::io::Error>().is_some_and(|e| e.kind() == std::io::ErrorKind::BrokenPipe))
 }
 
 fn render(args: RenderArgs) -> Result<()> {
@@ -308,14 +338,14 @@ fn render(args: RenderArgs) -> Result<()> {
         None => vp.render(&frame),
     };
     std::fs::write(&args.output, image.encode_png()).with_context(|| format!("writing {}", args.output.display()))?;
-    println!(
+    outln!(
         "{}: {}x{}, {} polygons -> {}",
         db.scene.name,
         screen.width,
         screen.height,
         frame.polygons.len(),
         args.output.display()
-    );
+    )?;
     keep_till_exit(db);
     Ok(())
 }
@@ -344,7 +374,7 @@ fn dump(args: DumpArgs) -> Result<()> {
     let json = serde_json::to_string_pretty(&albatros::frame::dump::FrameDump::new(&frame))?;
     match args.output {
         Some(path) => std::fs::write(&path, json).with_context(|| format!("writing {}", path.display()))?,
-        None => println!("{json}"),
+        None => outln!("{json}")?,
     }
     keep_till_exit(db);
     Ok(())
@@ -359,32 +389,42 @@ fn info(args: SceneArgs) -> Result<()> {
     let s = &db.scene;
     let frame = gp::frame(&db, &s.eye, s.screen, &gp_config(&args), &mut counters);
     let (nodes, splits) = db.bsp_totals();
-    println!("scene        {}", s.name);
-    println!("screen       {}x{}", s.screen.width, s.screen.height);
-    println!("models       {}", s.models.len());
-    println!("instances    {} ({} moving)", s.instances.len(), db.moving_count());
-    println!("materials    {}", s.materials.len());
-    println!("textures     {}", s.textures.len());
-    println!("light points {}", s.lights.len());
-    println!("faces        {} (over all instances)", s.instance_face_count());
-    println!(
+    outln!("scene        {}", s.name)?;
+    outln!("screen       {}x{}", s.screen.width, s.screen.height)?;
+    outln!("models       {}", s.models.len())?;
+    outln!("instances    {} ({} moving)", s.instances.len(), db.moving_count())?;
+    outln!("materials    {}", s.materials.len())?;
+    outln!("textures     {}", s.textures.len())?;
+    outln!("light points {}", s.lights.len())?;
+    outln!("faces        {} (over all instances)", s.instance_face_count())?;
+    outln!(
         "bsp          {nodes} nodes, {splits} splits, {} faces in the static tree, depth {}, built in {:.2?}",
-        db.bsp.stats.faces, db.bsp.stats.depth, build
-    );
+        db.bsp.stats.faces,
+        db.bsp.stats.depth,
+        build
+    )?;
     let c = &counters;
-    println!(
+    outln!(
         "gp: instances rejected {} of {}; by class 1/2/3: {:?}",
-        c.instances_rejected, c.instances, c.instance_class
-    );
-    println!(
+        c.instances_rejected,
+        c.instances,
+        c.instance_class
+    )?;
+    outln!(
         "gp: faces in {}, back-facing {}, outside {}, by class 1/2/3 {:?}",
-        c.faces_in, c.backfacing, c.outside, c.face_class
-    );
-    println!(
+        c.faces_in,
+        c.backfacing,
+        c.outside,
+        c.face_class
+    )?;
+    outln!(
         "gp: near-clipped {}, window-clipped {}, degenerate {}, light points {}",
-        c.near_clipped, c.window_clipped, c.degenerate, c.lights
-    );
-    println!("frame list   {} polygons", frame.polygons.len());
+        c.near_clipped,
+        c.window_clipped,
+        c.degenerate,
+        c.lights
+    )?;
+    outln!("frame list   {} polygons", frame.polygons.len())?;
     keep_till_exit(db);
     Ok(())
 }
@@ -401,7 +441,7 @@ struct BenchRow<'a> {
 
 impl BenchRow<'_> {
     /// Prints the row as a table line or a JSON line; `(median, min, max)` in ms.
-    fn print(&self, (median, min, max): (f64, f64, f64), json: bool) {
+    fn print(&self, (median, min, max): (f64, f64, f64), json: bool) -> std::io::Result<()> {
         let size = format!("{}x{}", self.screen.width, self.screen.height);
         if json {
             let mut v = serde_json::json!({
@@ -415,8 +455,7 @@ impl BenchRow<'_> {
                     "gp_ms": gp, "raster_ms": raster, "color_vb_ms": color, "readout_ms": readout,
                 });
             }
-            println!("{v}");
-            return;
+            return outln!("{v}");
         }
         let head = format!(
             "{:<10} {:>10} {:>7} {:>7.2}ms {:>7.2}ms {:>7.2}ms {:>8.1}",
@@ -430,9 +469,9 @@ impl BenchRow<'_> {
         );
         match self.stages {
             Some([gp, raster, color, readout]) => {
-                println!("{head} {gp:>7.2}ms {raster:>7.2}ms {color:>7.2}ms   readout {readout:.2}ms")
+                outln!("{head} {gp:>7.2}ms {raster:>7.2}ms {color:>7.2}ms   readout {readout:.2}ms")
             }
-            None => println!("{head}   (pipelined: GP of frame n+2, VPs of n+1, readout of n)"),
+            None => outln!("{head}   (pipelined: GP of frame n+2, VPs of n+1, readout of n)"),
         }
     }
 }
@@ -459,11 +498,20 @@ fn bench(args: BenchArgs) -> Result<()> {
     if !args.json {
         // Which instruction-set copies run (`ALBATROS_AVX512=1` asks for the AVX-512
         // ones): figures from two machines or settings compare only alike.
-        println!("VP copies: {} (ALBATROS_AVX512=1: the AVX-512 ones)", albatros::isa::copies());
-        println!(
+        outln!("VP copies: {} (ALBATROS_AVX512=1: the AVX-512 ones)", albatros::isa::copies())?;
+        outln!(
             "{:<10} {:>10} {:>7} {:>9} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9}",
-            "scene", "size", "frames", "median", "min", "max", "fps", "gp", "raster", "color+vb",
-        );
+            "scene",
+            "size",
+            "frames",
+            "median",
+            "min",
+            "max",
+            "fps",
+            "gp",
+            "raster",
+            "color+vb",
+        )?;
     }
     for name in names {
         let scene_args = SceneArgs { scene: name.clone(), size: args.size, clipper: ClipperArg::Automaton };
@@ -480,7 +528,7 @@ fn bench(args: BenchArgs) -> Result<()> {
             let intervals =
                 pipelined(&db, screen, vp_cfg, &maps, args.threads, args.matrix, args.warmup + args.frames)?;
             let row = BenchRow { name: &name, screen, threads: args.threads, frames: args.frames, stages: None };
-            row.print(spread(intervals[args.warmup..].to_vec()), args.json);
+            row.print(spread(intervals[args.warmup..].to_vec()), args.json)?;
             continue;
         }
         let (mut total, mut gp_t, mut raster_t, mut color_t, mut readout_t) = (vec![], vec![], vec![], vec![], vec![]);
@@ -551,7 +599,7 @@ fn bench(args: BenchArgs) -> Result<()> {
         }
         let stages = [spread(gp_t).0, spread(raster_t).0, spread(color_t).0, spread(readout_t).0];
         let row = BenchRow { name: &name, screen, threads: args.threads, frames: args.frames, stages: Some(stages) };
-        row.print(spread(total), args.json);
+        row.print(spread(total), args.json)?;
     }
     Ok(())
 }
@@ -602,10 +650,10 @@ fn tables(out: &Path) -> Result<()> {
     for (name, text) in files {
         let path = out.join(name);
         std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
-        println!("{}", path.display());
+        outln!("{}", path.display())?;
     }
     let readme = out.join("README.txt");
     std::fs::write(&readme, albatros::vp::tables::TABLES_README)?;
-    println!("{}", readme.display());
+    outln!("{}", readme.display())?;
     Ok(())
 }

@@ -90,9 +90,9 @@ pub fn run(args: StatsArgs) -> Result<()> {
     ex.hierarchical = args.hier_masks;
     let report = ex.report(&db.scene.name, Some(gp_counters), &modes, &hw);
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        outln!("{}", serde_json::to_string_pretty(&report)?)?;
     } else {
-        print!("{}", table(&report));
+        out!("{}", table(&report))?;
     }
     if let Some(n) = args.overhead {
         let (off, on) = overhead(&ex, modes[0].1, n.max(1));

@@ -92,6 +92,33 @@ fn bench_reports_the_copies_it_ran() {
     assert_eq!(copies(true), if avx512 { "avx512" } else { plain });
 }
 
+/// Output into a pipe whose reader has gone (`albatros info many | head -3`): each
+/// command that writes to standard output ends quietly and successfully, where
+/// `println!` had panicked ("failed printing to stdout: Broken pipe").
+#[test]
+fn a_closed_output_pipe_ends_the_command_quietly() {
+    let commands: [&[&str]; 5] = [
+        &["info", "rhombus"],
+        &["dump", "rhombus", "--size", "64x64"],
+        &["stats", "rhombus", "--size", "64x64"],
+        &["stats", "rhombus", "--size", "64x64", "--json"],
+        &["bench", "rhombus", "--size", "64x64", "--frames", "1", "--warmup", "0"],
+    ];
+    for args in commands {
+        // The reader closed before the command starts: its first write fails.
+        let (reader, writer) = std::io::pipe().expect("a pipe");
+        drop(reader);
+        let o = Command::new(env!("CARGO_BIN_EXE_albatros"))
+            .args(args)
+            .stdout(writer)
+            .output()
+            .expect("the albatros binary runs");
+        let err = stderr(&o);
+        assert!(o.status.success(), "{args:?} into a closed pipe: {:?}, {err}", o.status);
+        assert!(err.is_empty(), "{args:?} into a closed pipe wrote {err:?}");
+    }
+}
+
 #[test]
 fn dump_and_info_work_on_the_default_scene() {
     let out = tmp("dump.json");
