@@ -47,8 +47,8 @@
 //! instructions a face (session 20). The matrix the lanes load is kept aligned
 //! (`EyeMatrix`), as are the edge codes they store, an instance's class and
 //! matrix lie side by side (one bounds check), and the lighting's environment
-//! constants are made once a frame: `many`'s GP 853.3 to 843.0 M instructions
-//! (session 27).
+//! constants are made once a frame and taken by reference (`LightConstants`):
+//! `many`'s GP 853.3 to 834.0 M instructions (session 27).
 //!
 //! The static tree's records and vertices are asked for a few visits before the
 //! GP reads them (`FrameBuilder::visit_ahead`, [`Bsp::prefetch_record`]): the
@@ -554,12 +554,8 @@ struct Shared<'a> {
     /// Guests sorted by (node, slot, distance from the eye).
     guests: Vec<(u32, u8, f64, Guest)>,
     sun_world: DVec3,
-    /// The environment's ambient light and background brightness `Pb` as the
-    /// lighting takes them (`f64`), and its attenuation as [`Lighting::fade`]
-    /// does: made once a frame rather than converted and tested at each face.
-    ambient: f64,
-    pb: f64,
-    neg_beta: Option<f64>,
+    /// The environment's lighting constants, made once a frame.
+    light: LightConstants,
     /// The view volume, for rejecting the static tree's subtrees.
     frustum: Frustum,
     /// Whether subtrees outside it are passed over ([`Shared::culls_within`]).
@@ -967,9 +963,11 @@ impl<'a> Shared<'a> {
             world_to_eye: EyeMatrix(view.world_to_eye),
             guests: Vec::new(),
             sun_world: db.scene.env.sun.as_dvec3().normalize_or_zero(),
-            ambient: f64::from(db.scene.env.ambient),
-            pb: f64::from(db.scene.env.background_brightness),
-            neg_beta: Lighting::neg_beta(db.scene.env.attenuation),
+            light: LightConstants {
+                ambient: f64::from(db.scene.env.ambient),
+                pb: f64::from(db.scene.env.background_brightness),
+                neg_beta: Lighting::neg_beta(db.scene.env.attenuation),
+            },
             frustum: view.frustum(),
             cull: true,
             triangles: true,
@@ -1371,14 +1369,14 @@ impl FrameBuilder<'_> {
         let scratch = &mut self.scratch;
         // The face's and the environment's constants, out of the vertex loop: an
         // emissive or flat-shaded face's `cos a` is the same at every vertex.
-        let ambient = self.f.ambient;
+        let ambient = self.f.light.ambient;
         let lit = |normal: DVec3| ambient + (1.0 - ambient) * normal.dot(*sun).max(0.0);
         let cos_a = match (material.emissive, material.shading) {
             (true, _) => Some(1.0),
             (false, crate::db::Shading::Smooth) => None,
             (false, _) => Some(lit(face.plane.normal)),
         };
-        let light = Lighting { to_eye, view, cos_a, ambient, sun: *sun, pb: self.f.pb, neg_beta: self.f.neg_beta };
+        let light = Lighting { to_eye, view, cos_a, env: &self.f.light, sun };
         // The vertices' places from the cache when the tree numbers them (the test
         // made once a face: a tree that does not, `many`'s, pays nothing); their
         // light always per face.
@@ -1592,10 +1590,22 @@ struct Lighting<'a> {
     /// `cos a` of every vertex (emissive and flat-shaded faces), or `None` for
     /// each vertex's own (smooth shading).
     cos_a: Option<f64>,
-    ambient: f64,
+    /// The environment's constants (the frame's, by reference: not copied
+    /// face by face).
+    env: &'a LightConstants,
     /// The light's direction in the face's coordinates.
-    sun: DVec3,
-    /// The background brightness `Pb`.
+    sun: &'a DVec3,
+}
+
+/// The environment's lighting constants as [`Lighting`] takes them, made once a
+/// frame rather than converted (and the attenuation tested) at each face, and
+/// taken by reference, with the light's direction: copied into each face's
+/// `Lighting` they were stored to the stack and read back face by face (`many`'s
+/// GP 843.0 -> 834.0 M instructions, session 27).
+struct LightConstants {
+    /// The ambient light, `f64`.
+    ambient: f64,
+    /// The background brightness `Pb`, `f64`.
     pb: f64,
     /// `-beta`, the medium's attenuation negated ([`Lighting::neg_beta`]), or
     /// `None` where it is zero.
@@ -1665,7 +1675,7 @@ impl Lighting<'_> {
         };
         // P5: P' = Pb + (P cos a - Pb) exp(-beta z). With no attenuation the
         // factor is exp(0) = 1 exactly (z is finite), and not computed.
-        let fade = match self.neg_beta {
+        let fade = match self.env.neg_beta {
             None => 1.0,
             Some(k) => Self::fade(k, p),
         };
@@ -1682,7 +1692,7 @@ impl Lighting<'_> {
             Some(k) => [k; 3],
             None => [self.own_cos_a(a), self.own_cos_a(b), self.own_cos_a(c)],
         };
-        let fade = match self.neg_beta {
+        let fade = match self.env.neg_beta {
             None => [1.0; 3],
             Some(k) => [Self::fade(k, p[0]), Self::fade(k, p[1]), Self::fade(k, p[2])],
         };
@@ -1696,7 +1706,8 @@ impl Lighting<'_> {
     /// `cos a` of a smooth-shaded vertex, by its own normal.
     #[inline(always)]
     fn own_cos_a(&self, v: &BspVertex) -> f64 {
-        self.ambient + (1.0 - self.ambient) * v.normal.as_dvec3().dot(self.sun).max(0.0)
+        let ambient = self.env.ambient;
+        ambient + (1.0 - ambient) * v.normal.as_dvec3().dot(*self.sun).max(0.0)
     }
 
     /// [`Lighting::neg_beta`] of attenuation `beta`: `-beta` (exact), or `None`
@@ -1716,7 +1727,8 @@ impl Lighting<'_> {
     /// P5's brightness of vertex `v` with `cos a` and the attenuation `fade`.
     #[inline(always)]
     fn intensity(&self, v: &BspVertex, cos_a: f64, fade: f64) -> f64 {
-        self.pb + (f64::from(v.intensity) * cos_a - self.pb) * fade
+        let pb = self.env.pb;
+        pb + (f64::from(v.intensity) * cos_a - pb) * fade
     }
 }
 
@@ -2214,10 +2226,8 @@ mod tests {
                     to_eye: &to_eye,
                     view: &view,
                     cos_a: Some(1.0),
-                    ambient: 0.2,
-                    sun: DVec3::Z,
-                    pb: 0.0,
-                    neg_beta: None,
+                    env: &LightConstants { ambient: 0.2, pb: 0.0, neg_beta: None },
+                    sun: &DVec3::Z,
                 };
                 let want = [light.place(&vs[0]), light.place(&vs[1]), light.place(&vs[2])];
                 // SAFETY: AVX2 was detected above.
