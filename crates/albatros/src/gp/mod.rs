@@ -44,7 +44,11 @@
 //! frame: about 870 to 820 (session 15). The walk of the static tree is itself
 //! compiled for AVX2 with a face's set-up inlined at its visit of a face
 //! (`FrameBuilder::traverse_static_avx2`): no call a face, about 17 fewer
-//! instructions a face (session 20).
+//! instructions a face (session 20). The matrix the lanes load is kept aligned
+//! (`EyeMatrix`), as are the edge codes they store, an instance's class and
+//! matrix lie side by side (one bounds check), and the lighting's environment
+//! constants are made once a frame and taken by reference (`LightConstants`):
+//! `many`'s GP 853.3 to 834.0 M instructions (session 27).
 //!
 //! The static tree's records and vertices are asked for a few visits before the
 //! GP reads them (`FrameBuilder::visit_ahead`, [`Bsp::prefetch_record`]): the
@@ -526,6 +530,14 @@ enum Guest {
     Light(usize),
 }
 
+/// One instance as this frame's view sees it.
+struct InstanceView {
+    /// P4 class by bounding sphere (`None`: rejected).
+    class: Option<u8>,
+    /// Model-to-eye matrix.
+    model_to_eye: DMat4,
+}
+
 /// What the GP knows of one frame before it processes faces: the view, the
 /// instances' classes and matrices, the guests' places. Shared, read-only, by the
 /// workers that process stretches of the priority order in parallel.
@@ -533,13 +545,17 @@ struct Shared<'a> {
     db: &'a Database,
     view: View,
     config: GpConfig,
-    /// Per instance: P4 class by bounding sphere (`None`: rejected).
-    class: Vec<Option<u8>>,
-    /// Per instance: model-to-eye matrix.
-    model_to_eye: Vec<DMat4>,
+    /// Per instance: its P4 class and model-to-eye matrix, side by side (a face
+    /// reads both: one bounds check).
+    instances: Vec<InstanceView>,
+    /// The view's world-to-eye matrix (`View::world_to_eye`), aligned for
+    /// [`TriangleLanes::place`]: the static tree's faces' matrix.
+    world_to_eye: EyeMatrix,
     /// Guests sorted by (node, slot, distance from the eye).
     guests: Vec<(u32, u8, f64, Guest)>,
     sun_world: DVec3,
+    /// The environment's lighting constants, made once a frame.
+    light: LightConstants,
     /// The view volume, for rejecting the static tree's subtrees.
     frustum: Frustum,
     /// Whether subtrees outside it are passed over ([`Shared::culls_within`]).
@@ -943,10 +959,15 @@ impl<'a> Shared<'a> {
             db,
             view,
             config,
-            class: Vec::with_capacity(db.instances.len()),
-            model_to_eye: Vec::with_capacity(db.instances.len()),
+            instances: Vec::with_capacity(db.instances.len()),
+            world_to_eye: EyeMatrix(view.world_to_eye),
             guests: Vec::new(),
             sun_world: db.scene.env.sun.as_dvec3().normalize_or_zero(),
+            light: LightConstants {
+                ambient: f64::from(db.scene.env.ambient),
+                pb: f64::from(db.scene.env.background_brightness),
+                neg_beta: Lighting::neg_beta(db.scene.env.attenuation),
+            },
             frustum: view.frustum(),
             cull: true,
             triangles: true,
@@ -969,8 +990,7 @@ impl<'a> Shared<'a> {
                 None => self.counters.instances_rejected += 1,
                 Some(k) => self.counters.instance_class[k as usize - 1] += 1,
             }
-            self.class.push(cl);
-            self.model_to_eye.push(self.view.world_to_eye * info.model_to_world);
+            self.instances.push(InstanceView { class: cl, model_to_eye: self.view.world_to_eye * info.model_to_world });
         }
     }
 
@@ -994,8 +1014,9 @@ impl<'a> Shared<'a> {
     #[inline(always)]
     fn culls_within(&self, n: u32, inside: &Cell<(u32, u32)>) -> bool {
         let (start, end) = inside.get();
-        self.cull
-            && !(start..end).contains(&n)
+        // The range first: on `many` it turns every node away.
+        !(start..end).contains(&n)
+            && self.cull
             && self.db.bsp.subtree_faces(n) >= CULL_MIN_FACES
             && self.culls_large(n, inside)
     }
@@ -1023,7 +1044,7 @@ impl<'a> Shared<'a> {
         let db = self.db;
         for (mi, m) in db.moving.iter().enumerate() {
             let info = &db.instances[m.instance as usize];
-            if self.class[m.instance as usize].is_none() {
+            if self.instances[m.instance as usize].class.is_none() {
                 continue;
             }
             let (node, slot) = db.bsp.attach(info.center, info.radius);
@@ -1186,7 +1207,7 @@ impl FrameBuilder<'_> {
         }
         let f = self.f;
         let bsp = &f.db.bsp;
-        self.face_plain(&bsp.records[i as usize], bsp, &f.view.world_to_eye, &f.view.position, &f.sun_world);
+        self.face_plain(&bsp.records[i as usize], bsp, &f.world_to_eye, &f.view.position, &f.sun_world);
     }
 
     /// [`FrameBuilder::face_avx2`] of face `i` of the static tree, seen from the
@@ -1204,7 +1225,7 @@ impl FrameBuilder<'_> {
     fn static_face_body<const AVX2: bool>(&mut self, i: u32) {
         let f = self.f;
         let bsp = &f.db.bsp;
-        self.face_body::<AVX2>(&bsp.records[i as usize], bsp, &f.view.world_to_eye, &f.view.position, &f.sun_world);
+        self.face_body::<AVX2>(&bsp.records[i as usize], bsp, &f.world_to_eye, &f.view.position, &f.sun_world);
     }
 
     /// The faces of a subtree wholly outside the view volume ([`Shared::culls_within`]):
@@ -1217,7 +1238,7 @@ impl FrameBuilder<'_> {
         let range = bsp.subtree_face_range(n);
         let c = &mut self.counters;
         for r in &bsp.records[range.start as usize..range.end as usize] {
-            if f.class[r.instance as usize].is_none() {
+            if f.instances[r.instance as usize].class.is_none() {
                 continue;
             }
             c.faces_in += 1;
@@ -1257,7 +1278,7 @@ impl FrameBuilder<'_> {
         let db = self.f.db;
         let m = &db.moving[mi];
         let inst = m.instance as usize;
-        let to_eye = self.f.model_to_eye[inst];
+        let to_eye = EyeMatrix(self.f.instances[inst].model_to_eye);
         let info = &db.instances[inst];
         let eye_model = info.world_to_model.transform_point3(self.f.view.position);
         // P5: the light direction is taken into model coordinates.
@@ -1283,7 +1304,7 @@ impl FrameBuilder<'_> {
     /// else by the plain one: the same source ([`FrameBuilder::face_body`]), so the
     /// same operations in the same order, the same bits.
     #[inline(always)]
-    fn face(&mut self, face: &FaceRecord, tree: &Bsp, to_eye: &DMat4, eye_local: &DVec3, sun: &DVec3) {
+    fn face(&mut self, face: &FaceRecord, tree: &Bsp, to_eye: &EyeMatrix, eye_local: &DVec3, sun: &DVec3) {
         #[cfg(target_arch = "x86_64")]
         if self.f.avx2 {
             // SAFETY: `face_avx2` only needs AVX2 and BMI1/2, which `has_avx2`
@@ -1298,7 +1319,7 @@ impl FrameBuilder<'_> {
 
     /// [`FrameBuilder::face_body`] compiled for the baseline processor.
     #[inline(never)]
-    fn face_plain(&mut self, face: &FaceRecord, tree: &Bsp, to_eye: &DMat4, eye_local: &DVec3, sun: &DVec3) {
+    fn face_plain(&mut self, face: &FaceRecord, tree: &Bsp, to_eye: &EyeMatrix, eye_local: &DVec3, sun: &DVec3) {
         self.face_body::<false>(face, tree, to_eye, eye_local, sun);
     }
 
@@ -1310,7 +1331,7 @@ impl FrameBuilder<'_> {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,bmi1,bmi2,lzcnt,popcnt")]
     #[inline(never)]
-    fn face_avx2(&mut self, face: &FaceRecord, tree: &Bsp, to_eye: &DMat4, eye_local: &DVec3, sun: &DVec3) {
+    fn face_avx2(&mut self, face: &FaceRecord, tree: &Bsp, to_eye: &EyeMatrix, eye_local: &DVec3, sun: &DVec3) {
         self.face_body::<true>(face, tree, to_eye, eye_local, sun);
     }
 
@@ -1324,7 +1345,7 @@ impl FrameBuilder<'_> {
         &mut self,
         face: &FaceRecord,
         tree: &Bsp,
-        to_eye: &DMat4,
+        to_eye: &EyeMatrix,
         eye_local: &DVec3,
         sun: &DVec3,
     ) {
@@ -1333,7 +1354,8 @@ impl FrameBuilder<'_> {
         // else the record's own copies (and with no cache: the tests compare it).
         let ids = if self.f.vertex_cache { tree.record_vertex_ids_of(face) } else { None };
         let vertices = if ids.is_some() { &[] } else { tree.record_vertices_of(face) };
-        let Some(instance_class) = self.f.class[face.instance as usize] else { return };
+        let instance = &self.f.instances[face.instance as usize];
+        let Some(instance_class) = instance.class else { return };
         let counters = &mut self.counters;
         counters.faces_in += 1;
         // Back-face culling: the eye must be in front of the face's plane.
@@ -1344,26 +1366,17 @@ impl FrameBuilder<'_> {
         let db = self.f.db;
         let view = &self.f.view;
         let material = &db.scene.materials[face.material as usize];
-        let env = &db.scene.env;
         let scratch = &mut self.scratch;
         // The face's and the environment's constants, out of the vertex loop: an
         // emissive or flat-shaded face's `cos a` is the same at every vertex.
-        let ambient = f64::from(env.ambient);
+        let ambient = self.f.light.ambient;
         let lit = |normal: DVec3| ambient + (1.0 - ambient) * normal.dot(*sun).max(0.0);
         let cos_a = match (material.emissive, material.shading) {
             (true, _) => Some(1.0),
             (false, crate::db::Shading::Smooth) => None,
             (false, _) => Some(lit(face.plane.normal)),
         };
-        let light = Lighting {
-            to_eye,
-            view,
-            cos_a,
-            ambient,
-            sun: *sun,
-            pb: f64::from(env.background_brightness),
-            attenuation: env.attenuation,
-        };
+        let light = Lighting { to_eye, view, cos_a, env: &self.f.light, sun };
         // The vertices' places from the cache when the tree numbers them (the test
         // made once a face: a tree that does not, `many`'s, pays nothing); their
         // light always per face.
@@ -1430,7 +1443,7 @@ impl FrameBuilder<'_> {
                         Outline::Points(&screen)
                     }
                 };
-                let model_to_eye = &self.f.model_to_eye[face.instance as usize];
+                let model_to_eye = &instance.model_to_eye;
                 Self::set_up_face::<AVX2>(
                     &mut self.setup,
                     self.out,
@@ -1507,7 +1520,7 @@ impl FrameBuilder<'_> {
             }
             &scratch.window
         };
-        let model_to_eye = &self.f.model_to_eye[face.instance as usize];
+        let model_to_eye = &instance.model_to_eye;
         Self::set_up_face::<AVX2>(
             &mut self.setup,
             self.out,
@@ -1559,28 +1572,51 @@ impl FrameBuilder<'_> {
     }
 }
 
+/// A model-to-eye matrix aligned to 32 bytes, so that [`TriangleLanes::place`]
+/// loads each of its columns (32 bytes) as one aligned register: an unaligned
+/// 32-byte load is two instructions in this build's tuning (`many`'s GP: 4
+/// instructions a triangle; session 27).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(32))]
+struct EyeMatrix(DMat4);
+
+const _: () = assert!(std::mem::size_of::<DMat4>() == 128 && std::mem::align_of::<EyeMatrix>() == 32);
+
 /// What [`FrameBuilder::face`] needs to take a face's vertices to the eye and light
 /// them (P5).
 struct Lighting<'a> {
-    to_eye: &'a DMat4,
+    to_eye: &'a EyeMatrix,
     view: &'a View,
     /// `cos a` of every vertex (emissive and flat-shaded faces), or `None` for
     /// each vertex's own (smooth shading).
     cos_a: Option<f64>,
-    ambient: f64,
+    /// The environment's constants (the frame's, by reference: not copied
+    /// face by face).
+    env: &'a LightConstants,
     /// The light's direction in the face's coordinates.
-    sun: DVec3,
-    /// The background brightness `Pb`.
+    sun: &'a DVec3,
+}
+
+/// The environment's lighting constants as [`Lighting`] takes them, made once a
+/// frame rather than converted (and the attenuation tested) at each face, and
+/// taken by reference, with the light's direction: copied into each face's
+/// `Lighting` they were stored to the stack and read back face by face (`many`'s
+/// GP 843.0 -> 834.0 M instructions, session 27).
+struct LightConstants {
+    /// The ambient light, `f64`.
+    ambient: f64,
+    /// The background brightness `Pb`, `f64`.
     pb: f64,
-    /// `beta`, the medium's attenuation.
-    attenuation: f32,
+    /// `-beta`, the medium's attenuation negated ([`Lighting::neg_beta`]), or
+    /// `None` where it is zero.
+    neg_beta: Option<f64>,
 }
 
 impl Lighting<'_> {
     /// One vertex's place: its eye-space position and outcode.
     #[inline(always)]
     fn place(&self, v: &BspVertex) -> (DVec3, u8) {
-        let p = self.to_eye.transform_point3(v.position);
+        let p = self.to_eye.0.transform_point3(v.position);
         (p, self.view.outcode(p))
     }
 
@@ -1639,7 +1675,10 @@ impl Lighting<'_> {
         };
         // P5: P' = Pb + (P cos a - Pb) exp(-beta z). With no attenuation the
         // factor is exp(0) = 1 exactly (z is finite), and not computed.
-        let fade = if self.attenuation == 0.0 { 1.0 } else { self.fade(p) };
+        let fade = match self.env.neg_beta {
+            None => 1.0,
+            Some(k) => Self::fade(k, p),
+        };
         EyeVertex { position: p, intensity: self.intensity(v, cos_a, fade) }
     }
 
@@ -1653,7 +1692,10 @@ impl Lighting<'_> {
             Some(k) => [k; 3],
             None => [self.own_cos_a(a), self.own_cos_a(b), self.own_cos_a(c)],
         };
-        let fade = if self.attenuation == 0.0 { [1.0; 3] } else { [self.fade(p[0]), self.fade(p[1]), self.fade(p[2])] };
+        let fade = match self.env.neg_beta {
+            None => [1.0; 3],
+            Some(k) => [Self::fade(k, p[0]), Self::fade(k, p[1]), Self::fade(k, p[2])],
+        };
         [
             EyeVertex { position: p[0], intensity: self.intensity(a, cos_a[0], fade[0]) },
             EyeVertex { position: p[1], intensity: self.intensity(b, cos_a[1], fade[1]) },
@@ -1664,19 +1706,29 @@ impl Lighting<'_> {
     /// `cos a` of a smooth-shaded vertex, by its own normal.
     #[inline(always)]
     fn own_cos_a(&self, v: &BspVertex) -> f64 {
-        self.ambient + (1.0 - self.ambient) * v.normal.as_dvec3().dot(self.sun).max(0.0)
+        let ambient = self.env.ambient;
+        ambient + (1.0 - ambient) * v.normal.as_dvec3().dot(*self.sun).max(0.0)
     }
 
-    /// The medium's attenuation `exp(-beta z)` at eye-space `p`.
+    /// [`Lighting::neg_beta`] of attenuation `beta`: `-beta` (exact), or `None`
+    /// for zero (either sign), where the factor `exp(-beta z)` is 1 exactly (`z`
+    /// is finite) and not computed.
+    fn neg_beta(beta: f32) -> Option<f64> {
+        (beta != 0.0).then(|| -f64::from(beta))
+    }
+
+    /// The medium's attenuation `exp(-beta z)` at eye-space `p`, `neg_beta` being
+    /// `-beta`.
     #[inline(always)]
-    fn fade(&self, p: DVec3) -> f64 {
-        (-f64::from(self.attenuation) * p.z).exp()
+    fn fade(neg_beta: f64, p: DVec3) -> f64 {
+        (neg_beta * p.z).exp()
     }
 
     /// P5's brightness of vertex `v` with `cos a` and the attenuation `fade`.
     #[inline(always)]
     fn intensity(&self, v: &BspVertex, cos_a: f64, fade: f64) -> f64 {
-        self.pb + (f64::from(v.intensity) * cos_a - self.pb) * fade
+        let pb = self.env.pb;
+        pb + (f64::from(v.intensity) * cos_a - pb) * fade
     }
 }
 
@@ -1726,15 +1778,17 @@ impl TriangleLanes {
     /// The processor must have AVX2 (inlined always, so compiled with the caller's
     /// features: for the GP's face path compiled for AVX2).
     #[inline(always)]
-    unsafe fn place(to_eye: &DMat4, view: &View, vs: [&BspVertex; 3]) -> (Self, [DVec3; 3], u8, u8) {
+    unsafe fn place(to_eye: &EyeMatrix, view: &View, vs: [&BspVertex; 3]) -> (Self, [DVec3; 3], u8, u8) {
         use std::arch::x86_64::*;
-        let m: &[f64; 16] = to_eye.as_ref();
+        let m: &[f64; 16] = to_eye.0.as_ref();
         // SAFETY (this block): the matrix's columns are four `f64` each, in
-        // order; the loads are unaligned; the caller vouches for AVX2.
+        // order, each 32 bytes at a multiple of 32 from the matrix's start, which
+        // is aligned to 32 (`EyeMatrix`): aligned loads; the caller vouches for
+        // AVX2.
         unsafe {
             let c = m.as_ptr();
             let (c0, c1, c2, c3) =
-                (_mm256_loadu_pd(c), _mm256_loadu_pd(c.add(4)), _mm256_loadu_pd(c.add(8)), _mm256_loadu_pd(c.add(12)));
+                (_mm256_load_pd(c), _mm256_load_pd(c.add(4)), _mm256_load_pd(c.add(8)), _mm256_load_pd(c.add(12)));
             // (Macros rather than closures: a closure is a function of its own,
             // kept out of line without the caller's features.)
             macro_rules! to_eye {
@@ -2140,7 +2194,7 @@ mod tests {
                     glam::DQuat::from_euler(glam::EulerRot::XYZ, rng.unit() * 7.0, rng.unit() * 7.0, rng.unit() * 7.0),
                     DVec3::new(rng.unit() - 0.5, rng.unit() - 0.5, rng.unit() - 0.5) * 100.0,
                 );
-                let to_eye = if case % 3 == 0 { view.world_to_eye } else { view.world_to_eye * model };
+                let to_eye = EyeMatrix(if case % 3 == 0 { view.world_to_eye } else { view.world_to_eye * model });
                 let mut coordinate = |k: usize| match (case + k) % 7 {
                     0 => special[(rng.next() % special.len() as u64) as usize],
                     1 => (rng.unit() - 0.5) * 1e-6,
@@ -2155,7 +2209,7 @@ mod tests {
                     .collect();
                 if case % 4 == 1 {
                     // In the view volume, or nearly: eye-space points taken back.
-                    let to_model = to_eye.inverse();
+                    let to_model = to_eye.0.inverse();
                     for v in &mut vs {
                         let z = NEAR + rng.unit() * 100.0;
                         let (x, y) = (rng.unit() * 1.02 - 0.01, rng.unit() * 1.02 - 0.01);
@@ -2172,10 +2226,8 @@ mod tests {
                     to_eye: &to_eye,
                     view: &view,
                     cos_a: Some(1.0),
-                    ambient: 0.2,
-                    sun: DVec3::Z,
-                    pb: 0.0,
-                    attenuation: 0.0,
+                    env: &LightConstants { ambient: 0.2, pb: 0.0, neg_beta: None },
+                    sun: &DVec3::Z,
                 };
                 let want = [light.place(&vs[0]), light.place(&vs[1]), light.place(&vs[2])];
                 // SAFETY: AVX2 was detected above.

@@ -52,13 +52,14 @@ const FAST_COORD_BITS: u32 = 26;
 /// (the bounds are worked out there).
 const FLOAT_COORD_BITS: u32 = 21;
 
-// [`EdgeCode::push_triangle_avx2`] stores a code as one 32-byte register: `word,
-// slope, ends[0], ends[1]` (the order of [`EdgeCode`]'s `repr(C)`), each end `x`
-// then `y`.
+// [`EdgeCode::push_triangle_avx2`] stores a code as one aligned 32-byte register:
+// `word, slope, ends[0], ends[1]` (the order of [`EdgeCode`]'s `repr(C)`), each end
+// `x` then `y`.
 const _: () = {
     use std::mem::{offset_of, size_of};
     assert!(
         size_of::<EdgeCode>() == 32
+            && std::mem::align_of::<EdgeCode>() == 32
             && offset_of!(EdgeCode, word) == 0
             && offset_of!(EdgeCode, slope) == 8
             && offset_of!(EdgeCode, ends) == 16
@@ -134,6 +135,12 @@ const WORD_ORIGIN: i64 = !((1 << (EDGE_FRAC_BITS - ROOT_V_BITS)) - 1);
 /// three a triangle, and every VP reads them: at 64 bytes they were two thirds of
 /// the list, BENCHMARKS.md session 18).
 ///
+/// Aligned to its 32 bytes, so that a list of codes is too: no code straddles two
+/// cache lines, and the GP's AVX2 set-up ([`EdgeCode::push_triangle_avx2_at`])
+/// stores each as one aligned register, where an unaligned 32-byte store is two
+/// instructions in this build's tuning (`many`'s GP: 3 instructions a triangle;
+/// session 27).
+///
 /// Layout (`repr(C)`, 4 x 8 bytes):
 /// - `word`: bits `[63..16]` V at line `t = 0` ([`EdgeCode::origin`], an
 ///   [`EdgeCoord`] whose low 16 bits are zero); bit 3 `vertex32`
@@ -143,7 +150,7 @@ const WORD_ORIGIN: i64 = !((1 << (EDGE_FRAC_BITS - ROOT_V_BITS)) - 1);
 /// - `ends`: the edge's two snapped endpoints in canonical (lexicographic) order,
 ///   from which its [`ExactLine`] follows ([`EdgeCode::exact`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-#[repr(C)]
+#[repr(C, align(32))]
 pub struct EdgeCode {
     /// V at `t = 0` and the flags (see the layout above).
     word: i64,
@@ -549,11 +556,12 @@ impl EdgeCode {
         let dst = unsafe { out.as_mut_ptr().add(len) }.cast::<__m256i>();
         for (k, code) in codes.into_iter().enumerate() {
             // SAFETY: the three codes' 96 bytes after `len` were reserved; code `k`
-            // is the 32 bytes at `k` (an unaligned store), every field written
-            // with a valid value (the word's unused bits zero).
+            // is the 32 bytes at `k`, aligned to 32 as every code in the vector's
+            // buffer is (`EdgeCode`'s alignment, asserted above), every field
+            // written with a valid value (the word's unused bits zero).
             #[allow(unsafe_code, reason = "the store of a code into reserved capacity")]
             unsafe {
-                _mm256_storeu_si256(dst.add(k), code);
+                _mm256_store_si256(dst.add(k), code);
             }
         }
         // (Written in place rather than by `extend` of the three, which was not
