@@ -1799,14 +1799,46 @@ pub(crate) struct F1Avx2<'a> {
 
 #[cfg(target_arch = "x86_64")]
 impl F1Avx2<'_> {
+    /// This F1's registers for a run of cells ([`F1Registers`]).
+    #[inline(always)]
+    pub(crate) fn registers(&mut self) -> F1Registers<'_> {
+        let regs = self.regs;
+        F1Registers {
+            codes: &mut *self.codes,
+            width: self.width,
+            f1: regs.f1,
+            encoder: regs.encoder,
+            ln_area: &regs.ln_area,
+        }
+    }
+}
+
+/// [`F1Avx2`]'s registers read out of the VB and the 8-bit scale's [`F1Log8`] once
+/// for a run of cells, as a local of the colour computers' function
+/// ([`super::cc::ColorComputers::shade_accumulate`]): the VMEM's pointer, length and
+/// width, the encoder ROM's and the `ln(1 + e^x)` table's pointers stay in registers
+/// or the function's frame over the run, where read through [`F1Avx2`]'s pointers
+/// they were loaded again for every cell (the stores to VMEM between them) and two
+/// of them spilled again (terrain: ~7 instructions a cell).
+#[cfg(target_arch = "x86_64")]
+pub(crate) struct F1Registers<'a> {
+    codes: &'a mut [Word8],
+    width: usize,
+    f1: LogF1<'static>,
+    encoder: Encoder8Tables<'static>,
+    ln_area: &'static LnArea16,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl F1Registers<'_> {
     /// [`VideoBuffer::accumulate`] of one cell, in [`accumulate_log8_avx2`]. `SITE`
     /// tells the copies of the colour computers' function apart (one a copy, so
     /// that each is inlined into its one caller).
     #[target_feature(enable = "avx2")]
     #[inline]
     pub(crate) fn accumulate<const SITE: bool>(&mut self, vis: &Visible, colors: &CellColors) {
-        let (codes, width, regs) = (&mut *self.codes, self.width, self.regs);
-        let (f1, encoder, ln_area) = (&regs.f1, regs.encoder, &regs.ln_area);
+        let (codes, width) = (&mut *self.codes, self.width);
+        let (f1, encoder, ln_area) = (&self.f1, self.encoder, self.ln_area);
         // (Stable Rust takes no `if` as a const argument: one call a site.)
         if SITE {
             accumulate_log8_avx2::<{ F1_FUSED_TEXTURED }>(codes, width, vis, colors, f1, encoder, ln_area);
@@ -2417,9 +2449,9 @@ fn encode_half_avx2<const HALF: usize, const SITE: usize, const F1: u8>(
     } else {
         _mm256_extracti128_si256::<1>(hidden)
     });
-    // The first visible pixel's colour places the ROM's windows.
-    let lane = (8 * HALF + lanes.trailing_zeros() as usize) & 15;
-    let anchor = [0, 1, 2].map(|c| _mm256_broadcast_ss(&colors.rgb[c][lane]));
+    // The first visible pixel's colour places the ROM's windows: its lane of the
+    // half, in every lane (`lanes` is not 0, so the lane is 0 to 7).
+    let anchor = _mm256_set1_epi32(lanes.trailing_zeros() as i32);
     encode8_rgb_avx2(load_colors_half(colors, HALF), hidden, anchor, encoder.entries)
 }
 
@@ -2604,7 +2636,7 @@ fn load_colors_half(colors: &CellColors, half: usize) -> [__m256; 3] {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-fn encode8_rgb_avx2(rgb: [__m256; 3], hidden: __m256i, lane: [__m256; 3], table: &[u32; ENCODER8_PADDED]) -> __m256i {
+fn encode8_rgb_avx2(rgb: [__m256; 3], hidden: __m256i, lane: __m256i, table: &[u32; ENCODER8_PADDED]) -> __m256i {
     const LANES: usize = ENCODER8_WINDOW;
     // (Loops, not closures: a closure would not inherit the target feature.)
     let (mut bits, mut address, mut d) =
@@ -2619,8 +2651,7 @@ fn encode8_rgb_avx2(rgb: [__m256; 3], hidden: __m256i, lane: [__m256; 3], table:
         // saturating subtraction of 16-bit halves (the upper half 0 - 0) is
         // `saturating_sub`'s. At most `ENCODER8_ENTRIES - 1`, so the window is
         // inside the padded table (the mask, the identity, tells the compiler so).
-        let first =
-            _mm256_subs_epu16(_mm256_srli_epi32::<{ ENCODER8_SHIFT as i32 }>(_mm256_castps_si256(lane[c])), back);
+        let first = _mm256_subs_epu16(_mm256_permutevar8x32_epi32(address[c], lane), back);
         start[c] = _mm256_cvtsi256_si32(first) as u32 as usize & (ENCODER8_ENTRIES - 1);
         d[c] = _mm256_sub_epi32(address[c], first);
     }
