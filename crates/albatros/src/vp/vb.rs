@@ -2054,7 +2054,7 @@ const HALF_PATH: usize = 1;
 /// The `ln S` table ([`LogScale::ln_area_table`]) as [`ln_area16_avx2`] reads it:
 /// each entry as an `i16` (0 down to -470 for 8 bits), its low bytes in `low` and
 /// its high bytes in `high`, each table of 16 bytes in both halves of a register
-/// (the `vpshufb` tables).
+/// (the `vpshufb` tables), entry `n - 1` at byte `n mod 16`.
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(32))]
@@ -2069,7 +2069,12 @@ impl LnArea16 {
     fn new(ln_area: &[i32; AREA_DENOMINATOR as usize]) -> Self {
         // The bounds [`F1_ZERO16`] is chosen for (the 8-bit scale's).
         assert!(ln_area.iter().all(|e| (-470..=0).contains(e)), "the 8-bit ln S table");
-        let word = |i: usize| i16::try_from(ln_area[i % SHUFFLE_TABLE]).expect("an ln S entry of 16 bits") as u16;
+        // Byte `i` of a table holds entry `i - 1` (entry 15, `ln 1 = 0`, at 0), so
+        // that a count `n` of 1 to 16 reads entry `n - 1` at `n mod 16`.
+        let word = |i: usize| {
+            let entry = ln_area[(i + SHUFFLE_TABLE - 1) % SHUFFLE_TABLE];
+            i16::try_from(entry).expect("an ln S entry of 16 bits") as u16
+        };
         Self {
             low: std::array::from_fn(|i| (word(i) & 0xFF) as u8),
             high: std::array::from_fn(|i| (word(i) >> 8) as u8),
@@ -2096,10 +2101,11 @@ fn ln_area16_avx2(sets: __m256i, table: &LnArea16) -> __m256i {
     // Each byte's count, 0 to 8.
     let bytes = _mm256_add_epi8(_mm256_shuffle_epi8(bits, low), _mm256_shuffle_epi8(bits, high));
     // The low byte's count plus the high byte's: `n` in the low byte (at most 16:
-    // no carry), the high byte's count above it; `n - 1` to four bits (an empty
-    // set's -1 is 15, as a full one's 16 - 1), the high byte cleared.
+    // no carry), the high byte's count above it; `n` to four bits (an empty set's
+    // 0 as a full one's 16: entry 15 for both), the high byte cleared, the tables
+    // shifted by one entry ([`LnArea16::new`]; `n - 1` had cost an addition).
     let n = _mm256_add_epi16(bytes, _mm256_srli_epi16::<8>(bytes));
-    let index = _mm256_and_si256(_mm256_add_epi16(n, _mm256_set1_epi16(-1)), _mm256_set1_epi16(15));
+    let index = _mm256_and_si256(n, _mm256_set1_epi16(15));
     // The entry's low byte at the lane's low byte (an index byte with bit 7 set
     // gives 0), its high byte at the high byte.
     // SAFETY: `table.low` and `table.high` are 32 bytes each, which the loads read.
@@ -2543,19 +2549,47 @@ unsafe fn cell_row_mut(cell: &mut [Word8], r: usize, width: usize, cols: usize) 
 
 /// Stores the words of `v` whose bits are set in `lanes` (bit `x`, word `x`) into a
 /// row of four VMEM words, by one masked store; the others are left as they are.
+///
+/// The store's mask is [`ROW_MASKS`]' entry, one load, where made in the lanes
+/// (`lanes` moved, broadcast, and'ed with the lanes' bits and compared) it had cost
+/// four instructions more (terrain: ~0.8 M, ~200 000 partial rows a frame).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
 fn store_row_masked(row: &mut [Word8], v: __m128i, lanes: u32) {
     let row: &mut [Word8; 4] = row.try_into().expect("a row of four words");
-    let bits = _mm_setr_epi32(1, 2, 4, 8);
-    let mask = _mm_cmpeq_epi32(_mm_and_si128(_mm_set1_epi32(lanes as i32), bits), bits);
-    // SAFETY: `row` is 16 bytes, of which the store writes the words `mask` selects.
-    #[allow(unsafe_code, reason = "a masked store of a register into an array of its size")]
+    let mask: &[i32; 4] = &ROW_MASKS.0[lanes as usize & 0xF];
+    // SAFETY: `mask` is 16 bytes, which the load reads; `row` is 16 bytes, of which
+    // the store writes the words `mask` selects.
+    #[allow(unsafe_code, reason = "a load of an array of a register's size, a masked store into another")]
     unsafe {
-        _mm_maskstore_epi32(row.as_mut_ptr().cast(), mask, v)
+        _mm_maskstore_epi32(row.as_mut_ptr().cast(), _mm_load_si128(mask.as_ptr().cast()), v)
     }
 }
+
+/// [`store_row_masked`]'s masks: entry `lanes`, word `x` all ones where bit `x` of
+/// `lanes` is set, else zero.
+#[cfg(target_arch = "x86_64")]
+#[repr(C, align(16))]
+struct RowMasks([[i32; 4]; 16]);
+
+/// [`RowMasks`].
+#[cfg(target_arch = "x86_64")]
+static ROW_MASKS: RowMasks = RowMasks({
+    let mut masks = [[0i32; 4]; 16];
+    let mut lanes = 0;
+    while lanes < 16 {
+        let mut x = 0;
+        while x < 4 {
+            if lanes >> x & 1 == 1 {
+                masks[lanes][x] = -1;
+            }
+            x += 1;
+        }
+        lanes += 1;
+    }
+    masks
+});
 
 /// A bit per 16-bit lane of `v` (all ones or zeros in each), lane `i` at bit `i`.
 #[cfg(target_arch = "x86_64")]
