@@ -2135,24 +2135,11 @@ const _: () = assert!(
         && 4 * 255 + 470 - (F1_ZERO16 as i32) < SOFTPLUS_LANE_MAX
 );
 
-/// The 16-bit lanes of [`f1_cell16_avx2`]: lanes 0-3 pixels 0-3 (row 0), lanes 4-7
-/// pixels 8-11 (row 2), lanes 8-11 pixels 4-7 (row 1), lanes 12-15 pixels 12-15 (row
-/// 3): the order in which two half-cells' 32-bit lanes (rows 0 and 1, rows 2 and 3)
-/// unpack into one register and back. A bit per lane, the pixel's.
-#[cfg(target_arch = "x86_64")]
-const CELL16_PIXEL_BITS: [i16; 16] = {
-    let mut bits = [0i16; 16];
-    let mut lane = 0;
-    while lane < 16 {
-        let pixel = (lane & 3) + 4 * ((lane >> 2 & 1) * 2 + (lane >> 3));
-        bits[lane] = (1u16 << pixel) as i16;
-        lane += 1;
-    }
-    bits
-};
-
 /// The codes of component `C` of a cell's two halves' [`Word8`]s in 16-bit lanes, in
-/// [`CELL16_PIXEL_BITS`]' order.
+/// [`f1_cell16_avx2`]'s order: lanes 0-3 pixels 0-3 (row 0), lanes 4-7 pixels 8-11
+/// (row 2), lanes 8-11 pixels 4-7 (row 1), lanes 12-15 pixels 12-15 (row 3), the
+/// order in which two half-cells' 32-bit lanes (rows 0 and 1, rows 2 and 3) unpack
+/// into one register and back.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
@@ -2266,18 +2253,17 @@ unsafe fn f1_cell16_avx2<const F1: u8>(
     let later = visible & !u32::from(vis.first);
     // Rows 0 and 2 in the 64-bit halves of the low 128 bits, rows 1 and 3 above.
     let ln_s = ln_area16_avx2(_mm256_permute4x64_epi64::<0b11_01_10_00>(sets), ln_area);
-    // SAFETY: `CELL16_PIXEL_BITS` is 16 `i16`, the 32 bytes the load reads.
-    #[allow(unsafe_code, reason = "an unaligned load of an array of a register's size")]
-    let lane_bits = unsafe { _mm256_loadu_si256(CELL16_PIXEL_BITS.as_ptr().cast()) };
-    let first_lanes = _mm256_cmpeq_epi16(_mm256_and_si256(_mm256_set1_epi16(vis.first as i16), lane_bits), lane_bits);
-    // The rows with a later fragment (each has a visible pixel: it is in `cell`).
+    // The rows with a later fragment (each has a visible pixel: it is in `cell`),
+    // their later fragments' words ([`load_later_row`]: a first write's sum is its
+    // new value).
     // (No closure: it would not take this function's target feature.)
     let mut rows = [_mm_setzero_si128(); 4];
     for (r, row) in rows.iter_mut().enumerate() {
-        if later >> (4 * r) & 0xF != 0 {
+        let lanes = later >> (4 * r) & 0xF;
+        if lanes != 0 {
             // SAFETY: row `r` has a visible pixel, so it is in `cell` (this
             // function's condition).
-            *row = load_row(unsafe { cell_row(cell, r, width, cols) });
+            *row = load_later_row(unsafe { cell_row(cell, r, width, cols) }, lanes);
         }
     }
     let stored = [_mm256_set_m128i(rows[1], rows[0]), _mm256_set_m128i(rows[3], rows[2])];
@@ -2308,7 +2294,7 @@ unsafe fn f1_cell16_avx2<const F1: u8>(
             let zero = _mm256_setzero_si256();
             let (t0, t1) = (_mm256_blend_epi16::<0b1010_1010>(t0, zero), _mm256_blend_epi16::<0b1010_1010>(t1, zero));
             let t = _mm256_permute4x64_epi64::<0b11_01_10_00>(_mm256_packus_epi32(t0, t1));
-            v = _mm256_blendv_epi8(_mm256_add_epi16(hi, t), v, first_lanes);
+            v = _mm256_add_epi16(hi, t);
         }
         *code = store16_avx2(arith, v);
     }
@@ -2329,7 +2315,7 @@ unsafe fn f1_cell16_avx2<const F1: u8>(
 /// The half's [`Word8`]s are split in place into two registers of 16-bit lanes, no
 /// shuffles: `R | B << 16` (the word and `0x00FF_00FF`) and `G` (the word shifted
 /// right by 8 in 16-bit lanes: `G` in the low lane, the word's zero top byte in the
-/// high one); each pixel's `ln S` and first-write mask fill both lanes of its word.
+/// high one); each pixel's `ln S` fills both lanes of its word.
 /// Eq. 3-4 and the store then run on 2 registers where 32-bit lanes took 3 (one a
 /// component), with the same values as [`f1_cell16_avx2`]'s (zero as
 /// [`F1_ZERO16`]), so the same words; `ln(1 + e^x)` by a gather per component as
@@ -2377,24 +2363,23 @@ unsafe fn f1_half_avx2<const HALF: usize, const F1: u8>(
         _mm256_permute4x64_epi64::<0b11_11_10_10>(ln_s)
     };
     let ln_s = _mm256_unpacklo_epi16(rows, rows);
-    let lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
-    let first_lanes = _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(first as i32), lane_bits), lane_bits);
     let low_bytes = _mm256_set1_epi32(0x00FF_00FF);
     // `R | B << 16` and `G` of the new codes (the encoder's words have a zero top
     // byte).
     let new = [_mm256_and_si256(word, low_bytes), _mm256_srli_epi16::<8>(word)];
     let mut old = [_mm256_setzero_si256(); 2];
     if later != 0 {
-        // Rows `2 HALF` and `2 HALF + 1`, each where it has a later fragment.
+        // Rows `2 HALF` and `2 HALF + 1`, each where it has a later fragment, its
+        // later fragments' words ([`load_later_row`]).
         // SAFETY (both): such a row has a visible pixel, so it is in `cell` (this
         // function's condition).
         let low = if later & 0xF != 0 {
-            load_row(unsafe { cell_row(cell, 2 * HALF, width, cols) })
+            load_later_row(unsafe { cell_row(cell, 2 * HALF, width, cols) }, later & 0xF)
         } else {
             _mm_setzero_si128()
         };
         let high = if later >> 4 != 0 {
-            load_row(unsafe { cell_row(cell, 2 * HALF + 1, width, cols) })
+            load_later_row(unsafe { cell_row(cell, 2 * HALF + 1, width, cols) }, later >> 4)
         } else {
             _mm_setzero_si128()
         };
@@ -2430,7 +2415,7 @@ unsafe fn f1_half_avx2<const HALF: usize, const F1: u8>(
                     _mm256_blend_epi16::<0b1010_1010>(t_low, _mm256_setzero_si256())
                 }
             };
-            v = _mm256_blendv_epi8(_mm256_add_epi16(hi, t), v, first_lanes);
+            v = _mm256_add_epi16(hi, t);
         }
         *code = store16_avx2(arith, v);
     }
@@ -2620,6 +2605,25 @@ fn load_row(row: &[Word8]) -> __m128i {
             }
         }
     }
+}
+
+/// The words of a cell's row `row` ([`load_row`]) at its later fragments' pixels
+/// (`lanes`, a bit per pixel of the row), zero (code 0) at the others, by
+/// [`ROW_MASKS`]' entry. A first write's stored codes are then 0, whose value
+/// [`F1_ZERO16`] sums with a new value `v` to `v` (zero's conditions there), so eq.
+/// 4 runs on the first writes' lanes too and gives eq. 3's value: the F1 copies in
+/// 16-bit lanes ([`f1_cell16_avx2`], [`f1_half_avx2`]) keep no first-write lanes
+/// (a broadcast, an and and a compare) and blend (one a register) to choose
+/// between the two (session 27: terrain's colour + VB ~1 M instructions less).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn load_later_row(row: &[Word8], lanes: u32) -> __m128i {
+    let mask: &[i32; 4] = &ROW_MASKS.0[lanes as usize & 0xF];
+    // SAFETY: `mask` is 16 bytes, which the load reads.
+    #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
+    let mask = unsafe { _mm_load_si128(mask.as_ptr().cast()) };
+    _mm_and_si128(load_row(row), mask)
 }
 
 /// Stores a row of four VMEM words.
