@@ -622,9 +622,10 @@ impl<'a> PolyAvx2<'a> {
         &self,
         cells: &[Visible],
         out: &mut CellColors,
-        mut f1: Option<&mut F1Avx2>,
+        f1: Option<&mut F1Avx2>,
     ) {
         const N: usize = AVX2_LANES;
+        let mut f1 = f1.map(|f1| f1.registers());
         for vis in cells {
             let visible = visible_avx2(&vis.sets);
             if visible == 0 {
@@ -643,7 +644,7 @@ impl<'a> PolyAvx2<'a> {
                     store_lanes(c, (&mut out[N * half..N * (half + 1)]).try_into().expect("8 lanes"));
                 }
             }
-            if let Some(f1) = f1.as_deref_mut() {
+            if let Some(f1) = f1.as_mut() {
                 f1.accumulate::<TEXTURED>(vis, out);
             }
         }
