@@ -1444,6 +1444,98 @@ impl SubpixelProcessors {
         }
     }
 
+    /// The last-level cells of a window of 8 x 8 cells (corner pixel `(wx, wy)`, a
+    /// cell corner) that a small polygon's box (within the window, not empty) meets
+    /// and whose pixels in the box are all covered already (all 16 subpixels set in
+    /// the mask memory), with counting off, as a set of the window (cell `(i, j)`
+    /// from its corner at bit `i + 8 j`, the GQ's [`super::gq`] window of its last
+    /// cells at once): each such cell's fragment would be found hidden
+    /// ([`Self::hidden_avx2`]), with no first write and no change of the mask, so
+    /// the GQ passes it over before its edge list; the box is hidden whole
+    /// ([`Self::box_hidden`]) when the set is every cell the box meets. Only for the
+    /// polygons of [`Route::Avx2Small`] (empty for the others).
+    #[inline(always)]
+    pub fn hidden_cells(&self, poly: &SppPolygon, wx: u32, wy: u32) -> u64 {
+        #[cfg(target_arch = "x86_64")]
+        if poly.route == Route::Avx2Small {
+            // SAFETY: `hidden_cells_avx2` only needs the features `has_avx2` found the
+            // processor to have: `polygon` chooses an AVX2 route only for an SPP set
+            // whose `avx2` says so.
+            #[allow(unsafe_code, reason = "a function compiled for AVX2, after detection")]
+            unsafe {
+                return self.hidden_cells_avx2(poly, wx, wy);
+            }
+        }
+        let _ = (poly, wx, wy);
+        0
+    }
+
+    /// [`Self::hidden_cells`] in AVX2: every cell of the box, row by row, its mask
+    /// with the pixels outside the box set against all ones, as
+    /// [`Self::box_hidden_avx2`] does up to the first cell not hidden.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline(never)]
+    fn hidden_cells_avx2(&self, poly: &SppPolygon, wx: u32, wy: u32) -> u64 {
+        use std::arch::x86_64::{
+            __m256i, _mm256_load_si256, _mm256_or_si256, _mm256_set1_epi16, _mm256_setzero_si256, _mm256_testc_si256,
+        };
+        let [x0, x1, y0, y1] = poly.bbox;
+        if x1 <= x0 || y1 <= y0 {
+            return 0;
+        }
+        let (c0, c1) = ((x0 / CELL_SIDE) as usize, ((x1 - 1) / CELL_SIDE) as usize);
+        let (r0, r1) = ((y0 / CELL_SIDE) as usize, ((y1 - 1) / CELL_SIDE) as usize);
+        let (wc, wr) = ((wx / CELL_SIDE) as usize, (wy / CELL_SIDE) as usize);
+        debug_assert!(wc <= c0 && c1 < wc + 8 && wr <= r0 && r1 < wr + 8, "a box outside the window");
+        let lanes = |table: &[Words16; 4], k: u32| {
+            // SAFETY: a table entry is 16 `u16` aligned to 32 bytes ([`Words16`]), the
+            // 32 bytes the aligned load reads.
+            #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
+            unsafe {
+                _mm256_load_si256(table[(k % CELL_SIDE) as usize].0.as_ptr().cast())
+            }
+        };
+        let (left, right) = (lanes(&BORDER_LANES.0[0], x0), lanes(&BORDER_LANES.0[1], x1 - 1));
+        let (top, bottom) = (lanes(&BORDER_LANES.0[2], y0), lanes(&BORDER_LANES.0[3], y1 - 1));
+        let ones = _mm256_set1_epi16(-1);
+        assert!(r1 * self.stride + c1 < self.masks.len(), "a box off the screen");
+        let masks = self.masks.as_ptr();
+        let mut hidden = 0u64;
+        let (mut r, mut outside_row) = (r0, top);
+        loop {
+            if r == r1 {
+                outside_row = _mm256_or_si256(outside_row, bottom);
+            }
+            let row = r * self.stride;
+            let bit = 8 * (r - wr) - wc;
+            let (mut c, mut outside) = (c0, _mm256_or_si256(outside_row, left));
+            loop {
+                if c == c1 {
+                    outside = _mm256_or_si256(outside, right);
+                }
+                // SAFETY: cell `row + c` is one of the box's cells, whose last one's
+                // index is below the memory's length (asserted above); a cell's mask
+                // is 16 `u16` aligned to 32 bytes ([`Words16`]), the 32 bytes the
+                // aligned load reads.
+                #[allow(unsafe_code, reason = "an aligned load of a cell the assert above bounds")]
+                let mask = unsafe { _mm256_load_si256(masks.add(row + c).cast::<__m256i>()) };
+                let full = _mm256_testc_si256(_mm256_or_si256(mask, outside), ones) as u64;
+                hidden |= full << ((bit + c) & 63);
+                if c == c1 {
+                    break;
+                }
+                c += 1;
+                outside = outside_row;
+            }
+            if r == r1 {
+                return hidden;
+            }
+            r += 1;
+            outside_row = _mm256_setzero_si256();
+        }
+    }
+
     /// [`Self::process_to`] of a fragment that no edge crosses (a cell wholly inside
     /// its polygon: every pixel's code is [`FULL`]), with counting off: no look-ups,
     /// and the same visible sets and mask memory (tested against `process`), written
@@ -3432,6 +3524,71 @@ mod tests {
         for bbox in [[0, 0, 0, 0], [w, 0, h, 0], [5, 5, 3, 9], [5, 9, 3, 3], [w, w, h, h]] {
             let poly = a.polygon(bbox, 0);
             assert!(!a.box_hidden(&poly), "empty box {bbox:?}");
+        }
+    }
+
+    /// [`SubpixelProcessors::hidden_cells`] is its definition: the window's cells
+    /// the box meets whose box pixels all have 16 subpixels set (for a small polygon
+    /// with the AVX2 route; empty otherwise), over random masks (mostly full pixels)
+    /// and boxes of 1 to 20 pixels each way, in windows at the screen's ragged edges
+    /// too; the set is every cell the box meets just when [`SubpixelProcessors::box_hidden`].
+    #[test]
+    fn hidden_cells_are_their_definition() {
+        let mut next = xorshift(0x0B0C_5EED_4B1D_0002);
+        let (w, h) = (61, 43);
+        let mut a = SubpixelProcessors::new(w, h, SppMode::Area);
+        let (mut some, mut none) = (0, 0);
+        for k in 0..40_000 {
+            if k % 50 == 0 {
+                let full = next(8) as u32;
+                for m in &mut a.masks {
+                    m.0 = std::array::from_fn(|_| if (next(8) as u32) <= full { FULL } else { next(1 << 16) as u16 });
+                }
+            }
+            let (x0, y0) = (next(i64::from(w)) as u32, next(i64::from(h)) as u32);
+            let (x1, y1) = ((x0 + 1 + next(20) as u32).min(w), (y0 + 1 + next(20) as u32).min(h));
+            let bbox = [x0, x1, y0, y1];
+            // A window of 8 x 8 cells holding the box, its corner on a multiple of 8.
+            let (wx, wy) = (x0 & !7, y0 & !7);
+            if x1 - 1 - wx >= 32 || y1 - 1 - wy >= 32 {
+                continue;
+            }
+            let poly = a.polygon(bbox, 0);
+            let mut want = 0u64;
+            let mut meets = 0u64;
+            for cy in y0 / CELL_SIDE..=(y1 - 1) / CELL_SIDE {
+                for cx in x0 / CELL_SIDE..=(x1 - 1) / CELL_SIDE {
+                    let bit = (cx - wx / CELL_SIDE) + 8 * (cy - wy / CELL_SIDE);
+                    meets |= 1 << bit;
+                    let full = (y0.max(cy * 4)..y1.min(cy * 4 + 4)).all(|y| {
+                        (x0.max(cx * 4)..x1.min(cx * 4 + 4)).all(|x| {
+                            a.masks[(y / CELL_SIDE) as usize * a.stride + (x / CELL_SIDE) as usize].0
+                                [(4 * (y % CELL_SIDE) + x % CELL_SIDE) as usize]
+                                == FULL
+                        })
+                    });
+                    if full && poly.route == Route::Avx2Small {
+                        want |= 1 << bit;
+                    }
+                }
+            }
+            let got = a.hidden_cells(&poly, wx, wy);
+            assert_eq!(got, want, "case {k}: box {bbox:?}, window ({wx}, {wy})");
+            assert_eq!(got == meets, a.box_hidden(&poly), "case {k}: box {bbox:?}");
+            if want != 0 && want != meets {
+                some += 1;
+            } else {
+                none += 1;
+            }
+        }
+        assert!(!a.avx2 || (some > 1000 && none > 1000), "{some} partly hidden, {none} not");
+        // Empty boxes are never hidden and do not panic, every mask full.
+        for m in &mut a.masks {
+            m.0 = [FULL; 16];
+        }
+        for bbox in [[0, 0, 0, 0], [5, 5, 3, 9], [5, 9, 3, 3]] {
+            let poly = a.polygon(bbox, 0);
+            assert_eq!(a.hidden_cells(&poly, 0, 0), 0, "empty box {bbox:?}");
         }
     }
 
