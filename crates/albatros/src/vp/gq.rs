@@ -603,19 +603,6 @@ pub trait FragmentSink {
     fn box_hidden(&mut self) -> bool {
         false
     }
-
-    /// The last-level cells of the window of [`CellProcessors::last_cells`] (corner
-    /// pixel `(wx, wy)`, bit `i + 8 j` for its cell `(i, j)`) that the polygon's box
-    /// meets and whose pixels in the box are all covered already (the VP's sink asks
-    /// the SPPs' mask memory, [`super::spp::SubpixelProcessors::hidden_cells`]): a
-    /// fragment there can have no visible subpixel, make no first write and change
-    /// no mask. Asked once a polygon by the filling descent of a small polygon, in
-    /// place of [`Self::box_hidden`]. Empty unless the sink knows better.
-    #[inline(always)]
-    fn hidden_cells(&mut self, wx: u32, wy: u32) -> u64 {
-        let _ = (wx, wy);
-        0
-    }
 }
 
 /// A closure as a [`FragmentSink`].
@@ -964,6 +951,9 @@ impl CellProcessors {
         // 27 the VP passes over 373 k of them (all of those 155 k) before their start,
         // by the last level's marks under their box ([`Self::box_marked`]), and 93 k
         // come here.
+        if FILL && self.hidden_boxes && spp.box_hidden() {
+            return;
+        }
         let n = poly.edges.len();
         if n > self.stride {
             self.stride = n.next_power_of_two();
@@ -977,26 +967,14 @@ impl CellProcessors {
             let [x0, x1, y0, y1] = poly.bbox;
             let (cx0, cy0) = (x0 >> 3, y0 >> 3);
             let (columns, rows) = (((x1 - 1) >> 3) - cx0, ((y1 - 1) >> 3) - cy0);
-            let of = start.level + 1 == self.root_level;
-            if of || (start.level + 1 < self.root_level && columns < WINDOW_SPAN && rows < WINDOW_SPAN) {
-                // The window's cells whose box pixels are all covered already: the
-                // box's every cell is the box hidden whole (as [`FragmentSink::box_hidden`]
-                // below finds it), and a cell an edge crosses among them is passed
-                // over before its edge list ([`Self::last_split`]).
-                let hidden = if self.hidden_boxes { spp.hidden_cells(cx0 * 8, cy0 * 8) } else { 0 };
-                if hidden != 0 && hidden == window_box(poly.bbox, cx0 * 8, cy0 * 8) {
-                    return;
-                }
-                if of {
-                    self.last_cells_of(start, start_z, poly, hidden, spp);
-                } else {
-                    self.last_cells(cx0, cy0, columns, rows, start.level + 1, poly, hidden, spp);
-                }
+            if start.level + 1 == self.root_level {
+                self.last_cells_of(start, start_z, poly, spp);
                 return;
             }
-        }
-        if FILL && self.hidden_boxes && spp.box_hidden() {
-            return;
+            if start.level + 1 < self.root_level && columns < WINDOW_SPAN && rows < WINDOW_SPAN {
+                self.last_cells(cx0, cy0, columns, rows, start.level + 1, poly, spp);
+                return;
+            }
         }
         if FILL && self.start_at_size(start, poly, counters, spp) {
             return;
@@ -1209,7 +1187,6 @@ impl CellProcessors {
         rows: u32,
         from: u32,
         poly: &GqPolygon,
-        hidden: u64,
         spp: &mut impl FragmentSink,
     ) {
         let last = self.root_level;
@@ -1254,9 +1231,7 @@ impl CellProcessors {
                 if poly.opaque && self.masks.has(last) {
                     self.memories[last as usize].set_children(z, ci as u8);
                 }
-                // (The children an edge crosses whose box pixels are covered already:
-                // passed over, [`Self::last_split`].)
-                let mut todo = cri & !(children_bits(hidden, b) & !ci);
+                let mut todo = cri;
                 while todo != 0 {
                     let c = todo.trailing_zeros();
                     todo &= todo - 1;
@@ -1292,16 +1267,15 @@ impl CellProcessors {
     /// the sink's state for each cell rather than for each block (terrain's raster
     /// +2.3 M).
     #[inline(always)]
-    fn last_cells_of(&mut self, cell: Cell, z: usize, poly: &GqPolygon, hidden: u64, spp: &mut impl FragmentSink) {
+    fn last_cells_of(&mut self, cell: Cell, z: usize, poly: &GqPolygon, spp: &mut impl FragmentSink) {
         let codes = LastCells::new(poly.edges, cell.x * 8, cell.y * 8, 0, 0, poly.bbox);
-        self.last_split(&codes, cell, z, 0, poly, hidden, spp);
+        self.last_split(&codes, cell, z, 0, poly, spp);
     }
 
     /// The split ([`Self::split_step`]) of the window's cell `cell` of level L - 1
     /// (Z-order index `z`, its children at bits `b`, `b + 1`, `b + 8`, `b + 9` of
     /// `codes`): its children are last-level, those the box does not meet OUT in
     /// `codes`, where the split takes them as masked (the same marks and cells).
-    #[expect(clippy::too_many_arguments, reason = "the split's cell and codes, passed in registers")]
     #[inline(always)]
     fn last_split(
         &mut self,
@@ -1310,7 +1284,6 @@ impl CellProcessors {
         z: usize,
         b: u32,
         poly: &GqPolygon,
-        hidden: u64,
         spp: &mut impl FragmentSink,
     ) {
         let last = self.root_level;
@@ -1327,14 +1300,7 @@ impl CellProcessors {
         if poly.opaque && self.masks.has(last) {
             self.memories[last as usize].set_children(z, ci as u8);
         }
-        // A child an edge crosses whose box pixels are covered already (`hidden`,
-        // [`FragmentSink::hidden_cells`]) is passed over: its fragment would be found
-        // hidden, with no first write and no change of the mask, after its edge list
-        // was written and the SPPs called. Were the cell wholly covered, the
-        // fragment's report would mark it (Greene's rule), but it is marked already:
-        // the fragment that covered it reported it. A child wholly inside is kept:
-        // its marks are the split's.
-        let mut todo = cri & !(children_bits(hidden, b) & !ci);
+        let mut todo = cri;
         while todo != 0 {
             let c = todo.trailing_zeros();
             todo &= todo - 1;

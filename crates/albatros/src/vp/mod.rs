@@ -515,15 +515,6 @@ impl<S: Sink, const STATS: bool> gq::FragmentSink for Fragments<'_, S, STATS> {
     }
 
     #[inline(always)]
-    fn hidden_cells(&mut self, wx: u32, wy: u32) -> u64 {
-        if STATS {
-            0
-        } else {
-            self.spp.hidden_cells(self.spp_poly, wx, wy)
-        }
-    }
-
-    #[inline(always)]
     fn fragment(&mut self, frag: gq::Fragment<'_>) {
         if !STATS && frag.active.is_empty() {
             // With counting off, cells no edge crosses (wholly inside, up to
