@@ -1218,6 +1218,13 @@ impl CellProcessors {
                     self.start_inside(cell, z, poly.opaque, spp);
                     continue;
                 }
+                if outside == 0xF {
+                    // Every child OUT (or beyond the box): the split would mark none
+                    // (`ci` empty) and hand none on, so its mask memory is neither
+                    // read nor written (session 27: `many` 480 x 270 raster 1649.8 →
+                    // 1641.5 M instructions).
+                    continue;
+                }
                 // The split of `cell` ([`Self::split_step`], its children last-level;
                 // the children the box does not meet are OUT in `codes`, where the split
                 // takes them as masked: the same marks and cells).
