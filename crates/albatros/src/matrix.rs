@@ -279,9 +279,10 @@ impl Matrix {
     /// done ([`VideoBuffer::read_out_strip_borders`]); [`Self::read_out_into`]
     /// hands that image over. Why: the readout by bands of whole rows after the
     /// render read every VP's memory on every thread, and scaled 1.28x on two
-    /// (default at 1920 x 1080, session 26: 2.3 ms on one thread, 1.8 on two). On
-    /// a loaded host (session 27) the frames were the same within the noise; no
-    /// quiet-host pairs yet.
+    /// (default at 1920 x 1080, session 26: 2.3 ms on one thread, 1.8 on two).
+    /// Session 27, quiet host, two threads, 6 pairs: default's frame 13.1-14.1 ->
+    /// 12.8-13.7 ms (~2 %, the VPs and readout ~0.3 ms less), city 12.2-12.5 ->
+    /// 11.4-12.4, terrain 30.1 -> 29.2; the same within the noise when loaded.
     pub fn render_stretches(&mut self, stretches: &[FrameList]) {
         self.render_stretches_then(stretches, &|| (), true);
     }
