@@ -21,8 +21,12 @@
 //! strip by its tallies of work per cell column, [`VideoProcessor::column_work`]): a
 //! VP then repeats only the descents of the polygons that cross its strip's
 //! borders, touches only its strip of the memories, and drops every polygon outside
-//! its strip before its descent. On a frame like the last one (a simulator's frames
-//! follow each other closely) the VPs finish together. Strips, not bands of rows:
+//! its strip before its descent. Each VP then reads its strip of the image out
+//! (P1's 8-bit code), in the same task, from the memory its thread has just
+//! written, all but the one column before each border, whose F2 reads the next
+//! strip's memory and is read out after all are done. On a frame like the last one
+//! (a simulator's frames follow each other closely) the VPs finish together,
+//! readout and all. Strips, not bands of rows:
 //! the work of a frame crowds into rows (the far ground at the horizon of `default`:
 //! one row of cells held a tenth of the frame), not into columns. A modern choice
 //! beside the papers' fixed interleave, measured in BENCHMARKS.md; the image is the
@@ -34,7 +38,7 @@ use rayon::prelude::*;
 use crate::frame::FrameList;
 use crate::model::stats::Counters;
 use crate::vp::gq::Share;
-use crate::vp::vb::{Image, Readout, VideoBuffer};
+use crate::vp::vb::{Image, Readout, VideoBuffer, READOUT_BAND_ROWS};
 use crate::vp::{VideoProcessor, VpConfig};
 
 /// A matrix of video processors.
@@ -71,6 +75,12 @@ pub struct Matrix {
     /// Whether the VPs' memories hold a frame rendered by a step and not read out
     /// yet.
     rendered: bool,
+    /// The image of the frame in the VPs' memories, read out by the VPs as each
+    /// finished its render (a strip matrix of P1's 8-bit code, [`Self::render_stretches`]),
+    /// when `read` says so; handed over by [`Self::read_out_into`].
+    shown: Image,
+    /// Whether `shown` holds the image of the frame in the VPs' memories.
+    read: bool,
 }
 
 /// A matrix shape that is not possible.
@@ -154,6 +164,8 @@ impl Matrix {
             back: Vec::new(),
             back_shares: Vec::new(),
             rendered: false,
+            shown: Image { width: 0, height: 0, pixels: Vec::new() },
+            read: false,
         })
     }
 
@@ -198,6 +210,8 @@ impl Matrix {
             back: Vec::new(),
             back_shares: Vec::new(),
             rendered: false,
+            shown: Image { width: 0, height: 0, pixels: Vec::new() },
+            read: false,
         })
     }
 
@@ -234,8 +248,14 @@ impl Matrix {
     }
 
     /// [`Self::read_out`] into an image kept from frame to frame (its allocation
-    /// reused).
+    /// reused). A strip matrix's VPs read the frame out as they rendered it
+    /// ([`Self::render_stretches`]): that image is handed over (swapped with
+    /// `image`, whose allocation the next frame's readout reuses).
     pub fn read_out_into(&mut self, image: &mut Image) {
+        if std::mem::take(&mut self.read) {
+            std::mem::swap(image, &mut self.shown);
+            return;
+        }
         let readout = self.vps[0].config.readout;
         let (first, rest) = self.vps.split_first_mut().expect("at least one VP");
         let rest: Vec<_> = rest.iter().map(|vp| (&vp.vb, &vp.gq.share)).collect();
@@ -250,13 +270,27 @@ impl Matrix {
     /// [`Self::render_frame`] of a frame given as stretches, the several GPs' lists
     /// left unjoined ([`crate::gp::frame_stretches_into`]): every VP walks them in
     /// order ([`VideoProcessor::render_stretches`]); the same image as their join.
+    ///
+    /// In a strip matrix of P1's 8-bit code each VP then reads its strip out, in
+    /// the same task, from the memory its thread has just written
+    /// ([`VideoBuffer::read_out_strip`]), in bands of rows from the top (a thread
+    /// left idle takes bands from the bottom: rayon's stealing), and the pixels at
+    /// the strips' borders, whose F2 reads two memories, are read out once all are
+    /// done ([`VideoBuffer::read_out_strip_borders`]); [`Self::read_out_into`]
+    /// hands that image over. Why: the readout by bands of whole rows after the
+    /// render read every VP's memory on every thread, and scaled 1.28x on two
+    /// (default at 1920 x 1080, session 26: 2.3 ms on one thread, 1.8 on two).
+    /// Session 27, quiet host, two threads, 6 pairs: default's frame 13.1-14.1 ->
+    /// 12.8-13.7 ms (~2 %, the VPs and readout ~0.3 ms less), city 12.2-12.5 ->
+    /// 11.4-12.4, terrain 30.1 -> 29.2; the same within the noise when loaded.
     pub fn render_stretches(&mut self, stretches: &[FrameList]) {
-        self.render_stretches_then(stretches, &|| ());
+        self.render_stretches_then(stretches, &|| (), true);
     }
 
     /// [`Self::render_stretches`], each thread running `fill` as its VP is done
     /// and no VP is left to start ([`Self::step`]); `fill` runs at least once.
-    fn render_stretches_then(&mut self, stretches: &[FrameList], fill: &(dyn Fn() + Sync)) {
+    /// `read`: the VPs read their strips out ([`Self::render_stretches`]'s).
+    fn render_stretches_then(&mut self, stretches: &[FrameList], fill: &(dyn Fn() + Sync), read: bool) {
         if let Some(strips) = self.next_strips.take() {
             for (vp, (x0, x1)) in self.vps.iter_mut().zip(strips) {
                 let share = Share::strip(self.tile, x0, x1);
@@ -264,15 +298,55 @@ impl Matrix {
                 vp.spp.share = share;
             }
         }
+        // The readout by strips: its gamma table, and each VP's part of the image's
+        // rows (the strips tile the columns left to right).
+        self.read = false;
+        let readout = match read && self.striped {
+            true => self.vps[0].vb.log8_readout(&self.vps[0].config.readout),
+            false => None,
+        };
+        let strips = self.strips();
+        let mut parts: Vec<Vec<&mut [u8]>> = Vec::new();
+        if readout.is_some() {
+            let (w, h) = (self.vps[0].vb.width as usize, self.vps[0].vb.height as usize);
+            self.shown.width = w as u32;
+            self.shown.height = h as u32;
+            // Every byte is written below; `resize` only zeroes a first or larger frame.
+            self.shown.pixels.resize(3 * w * h, 0);
+            parts = strips.iter().map(|_| Vec::with_capacity(h)).collect();
+            for row in self.shown.pixels.chunks_exact_mut(3 * w.max(1)) {
+                let mut rest = row;
+                for (part, &(x0, x1)) in parts.iter_mut().zip(&strips) {
+                    let (strip, after) = rest.split_at_mut(3 * (x1 - x0) as usize);
+                    part.push(strip);
+                    rest = after;
+                }
+                assert!(rest.is_empty(), "strips that tile the columns");
+            }
+        }
+        parts.resize_with(self.vps.len(), Vec::new);
         let (vps, times) = (&mut self.vps, &mut self.times);
         times.resize(vps.len(), 0.0);
         let timed = self.striped;
         let (count, started) = (vps.len(), std::sync::atomic::AtomicUsize::new(0));
+        let readout = readout.as_ref();
         self.pool.install(|| {
-            vps.par_iter_mut().zip(times.par_iter_mut()).for_each(|(vp, time)| {
+            vps.par_iter_mut().zip(times.par_iter_mut()).zip(parts.into_par_iter()).for_each(|((vp, time), rows)| {
                 started.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                 let start = timed.then(std::time::Instant::now);
                 vp.render_stretches(stretches);
+                if let Some(readout) = readout {
+                    // In bands of rows, top to bottom on this thread; a thread
+                    // left idle (its VP done first, or the host's noise on this
+                    // one) takes bands from the bottom.
+                    let (vb, strip, mut rows) = (&vp.vb, vp.gq.share.strip, rows);
+                    rows.par_chunks_mut(READOUT_BAND_ROWS).enumerate().for_each(|(k, band)| {
+                        let y0 = k * READOUT_BAND_ROWS;
+                        vb.read_out_strip(readout, strip, y0..y0 + band.len(), band.iter_mut().map(|row| &mut **row));
+                    });
+                }
+                // (With the strip's readout: the strips are cut so that the VPs
+                // finish together, readout and all.)
                 if let Some(start) = start {
                     *time = start.elapsed().as_secs_f64();
                 }
@@ -282,6 +356,11 @@ impl Matrix {
             });
             fill();
         });
+        if let Some(readout) = readout {
+            let strips: Vec<_> = self.vps.iter().map(|vp| (&vp.vb, vp.gq.share.strip)).collect();
+            VideoBuffer::read_out_strip_borders(&strips, readout, &mut self.shown);
+            self.read = true;
+        }
         if self.striped {
             self.next_strips = Some(self.balance(stretches[0].width));
         }
@@ -389,6 +468,8 @@ impl Matrix {
         // The halves swap: the frame just rendered goes to be read out, with the
         // shares it was rendered with (the strips move as the next frame starts).
         let read = std::mem::take(&mut self.rendered);
+        // (The memories change halves: an image read out by strips is not theirs.)
+        self.read = false;
         if read {
             for ((vp, back), share) in self.vps.iter_mut().zip(&mut self.back).zip(&mut self.back_shares) {
                 std::mem::swap(&mut vp.vb, back);
@@ -420,7 +501,7 @@ impl Matrix {
         };
         // Inside the pool, the nested `install` of `render_stretches` runs in place.
         pool.install(|| match frame {
-            Some(frame) => self.render_stretches_then(frame, &fill),
+            Some(frame) => self.render_stretches_then(frame, &fill, false),
             None => fill(),
         });
         (self.back, self.back_shares) = (back, back_shares);
@@ -575,6 +656,47 @@ mod tests {
             }
         }
         assert!(several, "never more than one stretch: the test tests nothing");
+    }
+
+    /// A strip matrix's image read out by its VPs as they finish their renders
+    /// ([`VideoBuffer::read_out_strip`], then the borders) is the readout by bands
+    /// of rows of the same memories ([`read_out_memories`]) and one VP's image:
+    /// scenes with textures and light points, the eye moved, the strips moved by
+    /// the matrix and set (an empty one, one of a step), a short last strip (the
+    /// width not a multiple of the step), F2 on and off.
+    #[test]
+    fn read_out_by_strips_is_the_readout_by_bands() {
+        use crate::db::{builtin, Screen};
+        use crate::gp::{self, Database, GpConfig, GpCounters};
+        use crate::vp::texture::TextureMaps;
+        let screen = Screen { width: 328, height: 120 };
+        for (name, filter) in [("default", true), ("city", false), ("terrain", true), ("city", true)] {
+            let db = Database::new(builtin::scene(name).expect("built-in"));
+            let maps = std::sync::Arc::new(TextureMaps::from_scene(&db.scene, std::path::Path::new("")).expect("maps"));
+            let config = VpConfig { readout: Readout { filter, gamma: 2.2 }, ..VpConfig::default() };
+            let mut m = Matrix::striped(screen.width, screen.height, config, 3, 2).expect("matrix");
+            m.set_textures(maps.clone());
+            let mut one = VideoProcessor::new(screen.width, screen.height, config);
+            one.set_textures(maps);
+            let (mut eye, mut image) = (db.scene.eye, Image { width: 0, height: 0, pixels: Vec::new() });
+            for k in 0..5 {
+                eye.position += glam::Vec3::new(17.0, -3.0, 9.0);
+                eye.heading += 23.0;
+                let frame = gp::frame(&db, &eye, screen, &GpConfig::default(), &mut GpCounters::default());
+                match k {
+                    2 => m.set_strips(&[(0, 0), (0, 16), (16, screen.width)]).expect("strips"),
+                    3 => m.set_strips(&[(0, 320), (320, 320), (320, screen.width)]).expect("strips"),
+                    _ => {}
+                }
+                m.render_frame(&frame);
+                assert!(m.read, "{name}, frame {k}: the VPs read their strips out");
+                m.read_out_into(&mut image);
+                // Now by bands of rows, from the same memories.
+                let bands = m.read_out();
+                assert!(image == bands, "{name}, frame {k}, strips {:?}: by strips and by bands", m.strips());
+                assert!(image == one.render(&frame), "{name}, frame {k}: one VP's image");
+            }
+        }
     }
 
     proptest! {

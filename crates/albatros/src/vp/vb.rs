@@ -960,6 +960,13 @@ impl Default for Readout {
     }
 }
 
+/// A readout of the 8-bit code in parts ([`VideoBuffer::log8_readout`]): whether F2
+/// runs, and the gamma table (`log8_gamma_table`, 64 KiB) for the readout's gamma.
+pub struct Log8Readout {
+    filter: bool,
+    table: Vec<u8>,
+}
+
 /// The video memory of one [`VbMode`].
 #[derive(Clone, Debug)]
 enum Memory {
@@ -1325,9 +1332,89 @@ impl VideoBuffer {
         image.pixels.par_chunks_mut(band * w * 3).enumerate().for_each(|(k, out)| {
             let y0 = k * band;
             let rows = y0..(y0 + band).min(h);
-            read_out_log8_from(w, h, &segment, opts.filter, pairs, table, rows, out);
+            read_out_log8_from(w, h, &segment, opts.filter, pairs, table, rows.clone(), out_rows(w, &rows, out));
         });
         true
+    }
+
+    /// The 8-bit code's readout of a frame in parts, a strip matrix's VPs' strips
+    /// ([`Self::read_out_strip`], [`Self::read_out_strip_borders`]): `opts` with its
+    /// gamma table, made once for all the parts. `None` for the other modes.
+    pub fn log8_readout(&self, opts: &Readout) -> Option<Log8Readout> {
+        matches!(self.memory, Memory::Log8 { .. })
+            .then(|| Log8Readout { filter: opts.filter, table: self.gamma_table(opts) })
+    }
+
+    /// Reads out pixel columns `x0..x1` of rows `rows` (a strip matrix's VP's strip,
+    /// P1's 8-bit code, `ro` from [`Self::log8_readout`]) into `out`, one slice a
+    /// row, top to bottom, each the row's bytes `3 x0 .. 3 x1`. The strip is read as
+    /// an image of its own, from this memory alone: every byte is the whole image's
+    /// ([`Self::read_out`]'s) but column `x1 - 1`'s when `x1` is not the screen's
+    /// right edge, whose F2 needs column `x1` of the next strip's memory (its own
+    /// value stands in here; [`Self::read_out_strip_borders`] writes the byte).
+    ///
+    /// Why: a matrix's VP reads its strip out as its render ends, on its own thread,
+    /// from the memory that thread just wrote, rather than every thread reading bands
+    /// of rows of every VP's memory after all have finished ([`crate::matrix`]).
+    /// Panics on a buffer of another mode.
+    pub fn read_out_strip<'o>(
+        &self,
+        ro: &Log8Readout,
+        (x0, x1): (u32, u32),
+        rows: std::ops::Range<usize>,
+        out: impl Iterator<Item = &'o mut [u8]>,
+    ) {
+        let Memory::Log8 { scale, codes } = &self.memory else { panic!("a strip's readout of the 8-bit code only") };
+        let (w, h) = (self.width as usize, self.height as usize);
+        let (x0, x1) = (x0 as usize, (x1 as usize).min(w));
+        if x0 >= x1 || h == 0 {
+            return;
+        }
+        let pairs = scale.pair_means.as_ref().expect("the 8-bit scale has the pair table");
+        let table: &[u8; LOG8_ADDRESSES] = ro.table.as_slice().try_into().expect("the 8-bit gamma table");
+        let segment = |y: usize, x: usize| &codes[y * w + x0 + x..y * w + x1];
+        read_out_log8_from(x1 - x0, h, &segment, ro.filter, pairs, table, rows.start..rows.end.min(h), out);
+    }
+
+    /// The bytes a strip matrix's readout by strips ([`Self::read_out_strip`]) leaves
+    /// to be written: with F2, column `x - 1` of every row where one strip ends and
+    /// the next non-empty one starts at `x`, from the two memories, into `image`
+    /// (of the buffers' size). `strips`: each VP's buffer (P1's 8-bit code, all of
+    /// one size) and its strip, left to right, the strips tiling the columns.
+    pub fn read_out_strip_borders(strips: &[(&VideoBuffer, (u32, u32))], ro: &Log8Readout, image: &mut Image) {
+        let Some(&(first, _)) = strips.first() else { return };
+        let Memory::Log8 { scale, .. } = &first.memory else { panic!("a strip's readout of the 8-bit code only") };
+        if !ro.filter {
+            return;
+        }
+        let (w, h) = (first.width as usize, first.height as usize);
+        assert_eq!(image.pixels.len(), 3 * w * h, "an image of the buffers' size");
+        let pairs = scale.pair_means.as_ref().expect("the 8-bit scale has the pair table");
+        let table: &[u8; LOG8_ADDRESSES] = ro.table.as_slice().try_into().expect("the 8-bit gamma table");
+        // The last non-empty strip's memory and its end.
+        let mut left: Option<(&[Word8], usize)> = None;
+        for &(vb, (x0, x1)) in strips {
+            let Memory::Log8 { codes, .. } = &vb.memory else { panic!("a strip's readout of the 8-bit code only") };
+            assert_eq!((vb.width, vb.height), (first.width, first.height), "video buffers of different sizes");
+            let (x0, x1) = (x0 as usize, (x1 as usize).min(w));
+            if x0 >= x1 {
+                continue;
+            }
+            if let Some((left, x)) = left {
+                assert_eq!(x, x0, "strips that tile the columns");
+                for y in 0..h {
+                    let below = (y + 1).min(h - 1);
+                    // The line buffer's two values (F2's first pass) and their mean.
+                    let a = pairs.mean_words(left[y * w + x - 1], left[below * w + x - 1]);
+                    let b = pairs.mean_words(codes[y * w + x], codes[below * w + x]);
+                    let px = &mut image.pixels[3 * (y * w + x - 1)..][..3];
+                    for (ch, o) in px.iter_mut().enumerate() {
+                        *o = table[usize::from(pairs.mean_address(a[ch], b[ch]))];
+                    }
+                }
+            }
+            left = Some((codes, x1));
+        }
     }
 
     /// Reads out rows `rows` (F2 uses the row below the last one) into `out`, RGB8,
@@ -3055,7 +3142,13 @@ fn read_out_log8(
     out: &mut [u8],
 ) {
     let segment = |y: usize, x0: usize| &codes[y * w + x0..(y + 1) * w];
-    read_out_log8_from(w, h, &segment, filter, pairs, table, rows, out);
+    read_out_log8_from(w, h, &segment, filter, pairs, table, rows.clone(), out_rows(w, &rows, out));
+}
+
+/// `out` as the output rows of `rows` (`3 w` bytes each) for [`read_out_log8_from`].
+fn out_rows<'o>(w: usize, rows: &std::ops::Range<usize>, out: &'o mut [u8]) -> std::slice::ChunksExactMut<'o, u8> {
+    assert!(out.len() >= 3 * w * rows.len(), "out holds the rows");
+    out[..3 * w * rows.len()].chunks_exact_mut(3 * w.max(1))
 }
 
 /// [`read_out_log8`] with row `y` read from `segment(y, x0)`: the words of pixels
@@ -3063,6 +3156,9 @@ fn read_out_log8(
 /// at multiples of [`LOG8_RUN`] or at 0 and end there or at the row's end). A
 /// matrix's readout reads each tile's pixels from the VP that owns it, with no copy
 /// of the memories into one.
+///
+/// `out`: the output rows, `3 w` bytes each, one for each of `rows` (the rows of an
+/// image, or of a strip of it: [`VideoBuffer::read_out_strip`]).
 ///
 /// Its passes by the best copy the processor runs ([`Log8Passes`]): the portable one,
 /// AVX-512 (BW and VBMI) by arithmetic on the codes and byte permutes, or AVX2 by
@@ -3072,7 +3168,7 @@ fn read_out_log8(
 /// AVX-512) the AVX2 copy takes default's readout from 54.1 to 29.5 M instructions and
 /// about 6.3 to 4.4 ms (one thread, 1920 x 1080).
 #[allow(clippy::too_many_arguments, reason = "the readout's registers, passed as they are")]
-fn read_out_log8_from<'a>(
+fn read_out_log8_from<'a, 'o>(
     w: usize,
     h: usize,
     segment: &impl Fn(usize, usize) -> &'a [Word8],
@@ -3080,7 +3176,7 @@ fn read_out_log8_from<'a>(
     pairs: &PairMeans,
     table: &[u8; LOG8_ADDRESSES],
     rows: std::ops::Range<usize>,
-    out: &mut [u8],
+    out: impl Iterator<Item = &'o mut [u8]>,
 ) {
     #[cfg(target_arch = "x86_64")]
     if let Some(passes) = Log8Avx512::detect() {
@@ -3111,7 +3207,7 @@ impl Log8Avx2 {
     /// that the first pass is inlined into it.
     #[inline]
     #[allow(clippy::too_many_arguments, reason = "the readout's registers, passed as they are")]
-    fn read_out_rows<'a>(
+    fn read_out_rows<'a, 'o>(
         self,
         w: usize,
         h: usize,
@@ -3120,7 +3216,7 @@ impl Log8Avx2 {
         pairs: &PairMeans,
         table: &[u8; LOG8_ADDRESSES],
         rows: std::ops::Range<usize>,
-        out: &mut [u8],
+        out: impl Iterator<Item = &'o mut [u8]>,
     ) {
         // SAFETY: a `Log8Avx2` is made only by `detect`, after the processor was
         // found to have the feature the function is compiled for.
@@ -3135,7 +3231,7 @@ impl Log8Avx2 {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[allow(clippy::too_many_arguments, reason = "the readout's registers, passed as they are")]
-fn read_out_log8_rows_avx2<'a>(
+fn read_out_log8_rows_avx2<'a, 'o>(
     passes: Log8Avx2,
     w: usize,
     h: usize,
@@ -3144,7 +3240,7 @@ fn read_out_log8_rows_avx2<'a>(
     pairs: &PairMeans,
     table: &[u8; LOG8_ADDRESSES],
     rows: std::ops::Range<usize>,
-    out: &mut [u8],
+    out: impl Iterator<Item = &'o mut [u8]>,
 ) {
     read_out_log8_rows(passes, w, h, segment, filter, pairs, table, rows, out);
 }
@@ -3664,7 +3760,7 @@ impl Log8Passes for Log8Avx512 {
 /// [`read_out_log8_from`]'s rows with the first pass of `pass1`.
 #[inline(always)]
 #[allow(clippy::too_many_arguments, reason = "the readout's registers, passed as they are")]
-fn read_out_log8_rows<'a>(
+fn read_out_log8_rows<'a, 'o>(
     passes: impl Log8Passes,
     w: usize,
     h: usize,
@@ -3673,12 +3769,11 @@ fn read_out_log8_rows<'a>(
     pairs: &PairMeans,
     table: &[u8; LOG8_ADDRESSES],
     rows: std::ops::Range<usize>,
-    out: &mut [u8],
+    out: impl Iterator<Item = &'o mut [u8]>,
 ) {
     if w == 0 || rows.is_empty() {
         return;
     }
-    assert!(out.len() >= 3 * w * rows.len(), "out holds the rows");
     // A loaded code or a first-pass mean (`LOG8_ZERO` or at least code 1) is its own
     // address in the 8-bit gamma table.
     let pixel = |l: Line8| [0, 1, 2].map(|ch| table[usize::from(l[ch] as u16)]);
@@ -3703,7 +3798,8 @@ fn read_out_log8_rows<'a>(
         bytes
     };
     let mut flat_out: (Line8, [u8; 3 * LOG8_RUN]) = (flat_mean.1, run_bytes(flat_mean.1));
-    for (y, out_row) in rows.zip(out.chunks_exact_mut(3 * w)) {
+    for (y, out_row) in rows.zip(out) {
+        assert_eq!(out_row.len(), 3 * w, "an output row of the row's pixels");
         if !filter {
             let mut x0 = 0;
             while x0 < w {
@@ -3781,7 +3877,13 @@ fn read_out_log8_rows<'a>(
                 let run = line[x0..=x0 + LOG8_RUN].try_into().expect("a run and the pixel after it");
                 passes.pass2(out_run, run, pairs, table);
             } else {
-                read_out_log8_pass2_end(out_run, &line[x0..], pairs, table);
+                // The row's last whole run (and a strip's, [`VideoBuffer::read_out_strip`]):
+                // its last value stands in for the pixel after it, as in
+                // [`read_out_log8_pass2_end`], by the run's pass (default at 1920 x
+                // 1080 on two VPs: readout 24.8 -> 22.7 M instructions a frame).
+                let mut run = [line[x0 + LOG8_RUN - 1]; LOG8_RUN + 1];
+                run[..LOG8_RUN].copy_from_slice(&line[x0..x0 + LOG8_RUN]);
+                passes.pass2(out_run, &run, pairs, table);
             }
         }
         // The row's last run if it is short (pass 1 made it a tail, never flat).
@@ -4576,21 +4678,96 @@ mod tests {
                             pairs,
                             table,
                             rows.clone(),
-                            &mut expect,
+                            out_rows(w, &rows, &mut expect),
                         );
                         let mut got = vec![0u8; expect.len()];
-                        read_out_log8_from(w, h, &segment, filter, pairs, table, rows.clone(), &mut got);
+                        let out = out_rows(w, &rows, &mut got);
+                        read_out_log8_from(w, h, &segment, filter, pairs, table, rows.clone(), out);
                         assert_eq!(got, expect, "{w}x{h} rows {rows:?} gamma {gamma} filter {filter}");
                         #[cfg(target_arch = "x86_64")]
                         if let Some(avx2) = Log8Avx2::detect() {
                             got.fill(0);
-                            avx2.read_out_rows(w, h, &segment, filter, pairs, table, rows.clone(), &mut got);
+                            let out = out_rows(w, &rows, &mut got);
+                            avx2.read_out_rows(w, h, &segment, filter, pairs, table, rows.clone(), out);
                             assert_eq!(got, expect, "AVX2 {w}x{h} rows {rows:?} gamma {gamma} filter {filter}");
                         }
                     }
                 }
             }
         }
+    }
+
+    /// A readout by strips ([`VideoBuffer::read_out_strip`] of each strip from its
+    /// own buffer, then [`VideoBuffer::read_out_strip_borders`]) gives the bytes of
+    /// one buffer holding every strip's pixels read out whole: random codes (flat
+    /// runs, smooth runs, zeros), strips at multiples of 16 columns and not, empty
+    /// ones, a short last one, one-row images, F2 on and off. Each buffer's pixels
+    /// outside its strip are another image's, so a read across a border shows.
+    #[test]
+    fn read_out_by_strips_is_the_readout() {
+        let mut rng = Rng(0x5781);
+        let sizes = [(16, 1), (40, 3), (64, 9), (100, 13), (129, 7), (200, 20)];
+        for (case, &(w, h)) in sizes.iter().cycle().take(60).enumerate() {
+            let n = 1 + case % 4;
+            let mut word = 0u32;
+            let mut image = |rng: &mut Rng| -> Vec<Word8> {
+                (0..w * h)
+                    .map(|_| {
+                        match rng.next() % 12 {
+                            0 => word = Word8::pack([rng.code(255), rng.code(255), rng.code(255)]),
+                            1 => word = [0, 0x00FF_FFFF][(rng.next() % 2) as usize],
+                            2..=5 => word = nudge(rng, word),
+                            _ => {}
+                        }
+                        word
+                    })
+                    .collect()
+            };
+            let buffers: Vec<VideoBuffer> = (0..n)
+                .map(|_| {
+                    let mut vb = VideoBuffer::new(w as u32, h as u32, VbMode::LOG8);
+                    let Memory::Log8 { codes, .. } = &mut vb.memory else { unreachable!("the 8-bit code") };
+                    *codes = image(&mut rng);
+                    vb
+                })
+                .collect();
+            // Borders at random columns, at multiples of 16 in even cases.
+            let mut cuts: Vec<u32> = (1..n)
+                .map(|_| match case % 2 {
+                    0 => (rng.next() % (w as u64 / 16 + 1)) as u32 * 16,
+                    _ => (rng.next() % (w as u64 + 1)) as u32,
+                })
+                .map(|x| x.min(w as u32))
+                .collect();
+            cuts.sort_unstable();
+            let ends: Vec<u32> = cuts.iter().copied().chain([w as u32]).collect();
+            let strips: Vec<(u32, u32)> =
+                ends.iter().scan(0, |x0, &x1| Some((std::mem::replace(x0, x1), x1))).collect();
+            // The whole image: each column from its strip's buffer.
+            let mut whole = VideoBuffer::new(w as u32, h as u32, VbMode::LOG8);
+            for (vb, &(x0, x1)) in buffers.iter().zip(&strips) {
+                whole.copy_from(vb, |x, _| x >= x0 && x < x1);
+            }
+            for opts in
+                [Readout::default(), Readout { filter: false, gamma: 1.0 }, Readout { filter: true, gamma: 1.0 }]
+            {
+                let expect = whole.read_out(&opts);
+                let ro = buffers[0].log8_readout(&opts).expect("the 8-bit code");
+                let mut got = Image { width: w as u32, height: h as u32, pixels: vec![0xA5; 3 * w * h] };
+                for (vb, &(x0, x1)) in buffers.iter().zip(&strips) {
+                    // In two parts of rows (a band ends at the bottom row, or before it).
+                    let mid = (rng.next() % (h as u64 + 1)) as usize;
+                    let mut rows =
+                        got.pixels.chunks_exact_mut(3 * w).map(|row| &mut row[3 * x0 as usize..3 * x1 as usize]);
+                    vb.read_out_strip(&ro, (x0, x1), 0..mid, rows.by_ref().take(mid));
+                    vb.read_out_strip(&ro, (x0, x1), mid..h, rows);
+                }
+                let parts: Vec<(&VideoBuffer, (u32, u32))> = buffers.iter().zip(strips.iter().copied()).collect();
+                VideoBuffer::read_out_strip_borders(&parts, &ro, &mut got);
+                assert!(got == expect, "{w}x{h} strips {strips:?} {opts:?}");
+            }
+        }
+        assert!(VideoBuffer::new(4, 4, VbMode::FLOAT).log8_readout(&Readout::default()).is_none());
     }
 
     /// The background's F1 with its colour encoded once (in the call, or
