@@ -512,6 +512,11 @@ fn bench(args: BenchArgs) -> Result<()> {
             "raster",
             "color+vb",
         )?;
+        if args.threads > 1 && !args.pipeline {
+            // The matrix's VPs run raster, colour and VB together, and a strip
+            // matrix's VPs read out their own strips in the same task.
+            outln!("({} threads: color+vb is the VPs' whole time, with strips their readout too)", args.threads)?;
+        }
     }
     for name in names {
         let scene_args = SceneArgs { scene: name.clone(), size: args.size, clipper: ClipperArg::Automaton };
