@@ -793,7 +793,10 @@ impl CellProcessors {
     /// blocks of 8 x 8 cells, each block's marks one word in Z order: the first
     /// block's word is found by [`morton`], its neighbours' by a carry through the
     /// other coordinate's bits, and each word is tested against the box's cells in
-    /// it (`Z_COLUMNS & Z_ROWS`, as [`StartBlocks::block`] makes them).
+    /// it (`Z_COLUMNS & Z_ROWS`, as [`StartBlocks::block`] makes them). Not through
+    /// [`StartBlocks`] itself, whose blocks would give the same words: with its
+    /// order of blocks and a [`morton`] per block, `many` 480 x 270 raster 1637.2 →
+    /// 1655.9 M instructions (this runs for every polygon at the look-ahead).
     #[inline(always)]
     pub fn box_marked(&self, [x0, x1, y0, y1]: [u32; 4]) -> bool {
         debug_assert!(self.marks_last());

@@ -762,6 +762,14 @@ impl PairMeans {
         Self::address(hi.wrapping_sub(self.ln2), self.softplus[usize::from(hi.wrapping_sub(lo) as u16)])
     }
 
+    /// F2's output bytes (R, G, B) of the pixel whose line-buffer value is `a` and
+    /// its right neighbour's `b`: [`Self::mean_address`] of each component, through
+    /// the gamma table.
+    #[inline(always)]
+    fn output(&self, a: Line8, b: Line8, table: &[u8; LOG8_ADDRESSES]) -> [u8; 3] {
+        [0, 1, 2].map(|ch| table[usize::from(self.mean_address(a[ch], b[ch]))])
+    }
+
     /// `hi - T[0]` and `T[hi - lo]` to [`Self::mean_address`]'s address.
     #[inline(always)]
     fn address(hi_less_ln2: i16, t: u8) -> u16 {
@@ -1407,10 +1415,7 @@ impl VideoBuffer {
                     // The line buffer's two values (F2's first pass) and their mean.
                     let a = pairs.mean_words(left[y * w + x - 1], left[below * w + x - 1]);
                     let b = pairs.mean_words(codes[y * w + x], codes[below * w + x]);
-                    let px = &mut image.pixels[3 * (y * w + x - 1)..][..3];
-                    for (ch, o) in px.iter_mut().enumerate() {
-                        *o = table[usize::from(pairs.mean_address(a[ch], b[ch]))];
-                    }
+                    image.pixels[3 * (y * w + x - 1)..][..3].copy_from_slice(&pairs.output(a, b, table));
                 }
             }
             left = Some((codes, x1));
@@ -2630,12 +2635,24 @@ unsafe fn cell_row_mut(cell: &mut [Word8], r: usize, width: usize, cols: usize) 
 #[inline]
 fn store_row_masked(row: &mut [Word8], v: __m128i, lanes: u32) {
     let row: &mut [Word8; 4] = row.try_into().expect("a row of four words");
-    let mask: &[i32; 4] = &ROW_MASKS.0[lanes as usize & 0xF];
-    // SAFETY: `mask` is 16 bytes, which the load reads; `row` is 16 bytes, of which
-    // the store writes the words `mask` selects.
-    #[allow(unsafe_code, reason = "a load of an array of a register's size, a masked store into another")]
+    // SAFETY: `row` is 16 bytes, of which the store writes the words the mask selects.
+    #[allow(unsafe_code, reason = "a masked store of a register into an array of its size")]
     unsafe {
-        _mm_maskstore_epi32(row.as_mut_ptr().cast(), _mm_load_si128(mask.as_ptr().cast()), v)
+        _mm_maskstore_epi32(row.as_mut_ptr().cast(), row_mask(lanes), v)
+    }
+}
+
+/// [`ROW_MASKS`]' entry `lanes & 15` in a register: word `x` all ones where bit `x`
+/// of `lanes` is set, else zero.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn row_mask(lanes: u32) -> __m128i {
+    let mask: &[i32; 4] = &ROW_MASKS.0[lanes as usize & 0xF];
+    // SAFETY: `mask` is 16 bytes aligned to 16 (`RowMasks`), which the load reads.
+    #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
+    unsafe {
+        _mm_load_si128(mask.as_ptr().cast())
     }
 }
 
@@ -2706,11 +2723,7 @@ fn load_row(row: &[Word8]) -> __m128i {
 #[target_feature(enable = "avx2")]
 #[inline]
 fn load_later_row(row: &[Word8], lanes: u32) -> __m128i {
-    let mask: &[i32; 4] = &ROW_MASKS.0[lanes as usize & 0xF];
-    // SAFETY: `mask` is 16 bytes, which the load reads.
-    #[allow(unsafe_code, reason = "an aligned load of an array of a register's size")]
-    let mask = unsafe { _mm_load_si128(mask.as_ptr().cast()) };
-    _mm_and_si128(load_row(row), mask)
+    _mm_and_si128(load_row(row), row_mask(lanes))
 }
 
 /// Stores a row of four VMEM words.
@@ -3867,9 +3880,7 @@ fn read_out_log8_rows<'a, 'o>(
                 *out_run = flat_out.1;
                 match next {
                     Some(next) if *next != value => {
-                        for (ch, o) in out_run[3 * (LOG8_RUN - 1)..].iter_mut().enumerate() {
-                            *o = table[usize::from(pairs.mean_address(value[ch], next[ch]))];
-                        }
+                        out_run[3 * (LOG8_RUN - 1)..].copy_from_slice(&pairs.output(value, *next, table));
                     }
                     _ => {}
                 }
@@ -3929,10 +3940,7 @@ fn uniform_runs<'a>(
 #[inline(always)]
 fn read_out_log8_pass2_end(out: &mut [u8], line: &[Line8], pairs: &PairMeans, table: &[u8; LOG8_ADDRESSES]) {
     for (i, px) in out.chunks_exact_mut(3).enumerate() {
-        let (a, b) = (line[i], line[(i + 1).min(line.len() - 1)]);
-        for (ch, o) in px.iter_mut().enumerate() {
-            *o = table[usize::from(pairs.mean_address(a[ch], b[ch]))];
-        }
+        px.copy_from_slice(&pairs.output(line[i], line[(i + 1).min(line.len() - 1)], table));
     }
 }
 
